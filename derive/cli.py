@@ -1,15 +1,23 @@
 """Command line: ``derive show|check|generate ...``. Thin: parse, call, report.
 
-Every DeriveError becomes one message on stderr and exit code 2.
+Each command lives in its own module exposing ``add_arguments(parser)`` and
+``run(args) -> int``; this module only dispatches. Every DeriveError becomes
+one message on stderr and exit code 2, never a traceback.
 """
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Sequence
 
 from .errors import DeriveError
-from .spec import DEFAULT_ARM, load_arm
+
+# command -> (module, help)
+COMMANDS = {
+    "show": ("derive.show", "print the derived dynamics, gains and laws"),
+    "check": ("derive.check", "check the paper's claims as proof obligations"),
+}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -17,36 +25,30 @@ def _parser() -> argparse.ArgumentParser:
         "Derive and generate disturbance-observer-based and nonlinear PID controllers for "
         "robot arms (Chen's paper, eq. 11-38)."))
     sub = parser.add_subparsers(dest="command", required=True)
-    show = sub.add_parser("show", help="print the derived dynamics, gains and laws")
-    show.add_argument("arm", nargs="?", default=None,
-                      help=f"arm file, or the name of a packaged arm (default {DEFAULT_ARM})")
-    show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
-    show.add_argument("--exact", action="store_true", help="exact rationals instead of 6 digits")
+    for name, (module, help_text) in COMMANDS.items():
+        importlib.import_module(module).add_arguments(sub.add_parser(name, help=help_text))
     return parser
 
 
-def _show(args: argparse.Namespace) -> int:
-    from .pipeline import derive
-    from .show import render_latex, render_text
+def add_arm_argument(parser: argparse.ArgumentParser) -> None:
+    """The optional positional ARM every command takes."""
+    from .spec import DEFAULT_ARM
 
-    d = derive(load_arm(args.arm))
-    if args.latex:
-        text = render_latex(d, exact=args.exact)
-    else:
-        encoding = (getattr(sys.stdout, "encoding", None) or "").lower()
-        text = render_text(d, exact=args.exact, unicode=encoding.startswith("utf"))
-    sys.stdout.write(text if text.endswith("\n") else text + "\n")
-    return 0
+    parser.add_argument("arm", nargs="?", default=None,
+                        help=f"arm file, or the name of a packaged arm (default {DEFAULT_ARM})")
 
 
-COMMANDS = {"show": _show}
+def report_warnings(derivation) -> None:
+    """Print a derivation's warnings on stderr (they never change the exit code)."""
+    for text in derivation.warnings:
+        print(f"derive: warning: {text}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``derive`` console script; returns the exit code."""
     args = _parser().parse_args(argv)
     try:
-        return COMMANDS[args.command](args)
+        return importlib.import_module(COMMANDS[args.command][0]).run(args)
     except DeriveError as exc:
         print(f"derive: error: {exc}", file=sys.stderr)
         return 2

@@ -28,7 +28,8 @@ class Derivation:
     initial estimate in e0_i, de0_i), u_star (eq. 15), u_dobc (eq. 27),
     u_npid (eq. 34), dhat (eq. 22). ``lumped``: j1, j2, j3, X of eq. (a6) for
     n = 2, else None; ``speed_bound``: w1/X, the largest theta2' for which
-    (26) holds (n = 2, else None). ``dynamics``, ``mpc``, ``observer``, ``npid``
+    (26) holds (n = 2, else None); ``warnings``: sentences for the user (e.g. a
+    stated maximum speed above that bound). ``dynamics``, ``mpc``, ``observer``, ``npid``
     hold the same in symbols; ``values`` maps every symbol to its value.
     """
 
@@ -59,6 +60,7 @@ class Derivation:
     dhat: sp.Matrix
     lumped: dict | None
     speed_bound: sp.Expr | None
+    warnings: tuple[str, ...]
 
     @property
     def n(self) -> int:
@@ -91,10 +93,17 @@ def derive(arm: Arm) -> Derivation:
     if arm.n == 2:
         lumped = {k: v.xreplace(rep) for k, v in lumped_2link(dyn).items()}
         bound = speed_bound(lumped["X"], rep[obs.w[0]]) if lumped["X"] != 0 else sp.oo
+    warnings = []
+    speeds = ctl.max_joint_speed
+    if bound is not None and speeds is not None and sp.Rational(speeds[1].numerator, speeds[1].denominator) >= bound:
+        warnings.append(
+            f"controller.max_joint_speed[2] = {float(speeds[1]):g} rad/s is not below w1/X = "
+            f"{float(bound):.6g} rad/s: condition (26) fails there, so theorem 2 does not "
+            "guarantee that the observer converges at that speed (raise w1 or lower the speed)")
     return Derivation(
         arm=arm, dynamics=dyn, mpc=mpc, observer=obs, npid=npid, values=values,
         theta=dyn.sym.theta, dtheta=dyn.sym.dtheta, J=num(dyn.J), G=num(dyn.G), B=num(dyn.B),
         C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
-        speed_bound=bound)
+        speed_bound=bound, warnings=tuple(warnings))

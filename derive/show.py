@@ -57,3 +57,31 @@ def render_latex(d: Derivation, exact: bool = False) -> str:
         lines.append(f"% {name} ({ref})")
         lines.append(r"\[ " + sp.latex(_tidy(expr, exact, d.n)) + r" \]")
     return "\n".join(lines) + "\n"
+
+
+def add_arguments(parser) -> None:
+    """CLI: derive show [ARM] [--latex] [--exact]."""
+    from .cli import add_arm_argument
+
+    add_arm_argument(parser)
+    parser.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
+    parser.add_argument("--exact", action="store_true", help="exact rationals instead of 6 digits")
+
+
+def run(args) -> int:
+    import sys
+
+    from .pipeline import derive
+    from .spec import load_arm
+
+    from .cli import report_warnings
+
+    d = derive(load_arm(args.arm))
+    report_warnings(d)
+    if args.latex:
+        text = render_latex(d, exact=args.exact)
+    else:
+        encoding = (getattr(sys.stdout, "encoding", None) or "").lower()
+        text = render_text(d, exact=args.exact, unicode=encoding.startswith("utf"))
+    sys.stdout.write(text if text.endswith("\n") else text + "\n")
+    return 0

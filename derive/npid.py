@@ -73,8 +73,10 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
     if len(solution) != 1:
         raise DerivationError("no unique initial estimate dhat(0) removes the constant of eq. (30)")
     dhat0 = dhat_init.xreplace(solution[0]).applyfunc(sp.expand)
-    dhat_pid = dhat_t.xreplace(solution[0])
-    u_npid = (mpc.u_star - dhat_pid).applyfunc(sp.expand)
+    if constant.xreplace(solution[0]).applyfunc(sp.expand) != sp.zeros(n, 1):
+        raise DerivationError("the derived dhat(0) leaves a constant in eq. (30)")
+    dhat_pid = rate.xreplace(antiderivative)  # eq. (32): dhat(t) with its constant removed
+    u_npid = mpc.u_star - dhat_pid  # kept factored: its Jacobians keep the structure of J, G
     P, D, I = (u_npid.jacobian(v) for v in (e, de, int_e))
     zero = {**{a: 0 for a in e}, **{a: 0 for a in de}, **{a: 0 for a in int_e}}
     N = u_npid.xreplace(zero)

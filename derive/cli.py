@@ -17,6 +17,7 @@ from .errors import DeriveError
 COMMANDS = {
     "show": ("derive.show", "print the derived dynamics, gains and laws"),
     "check": ("derive.check", "check the paper's claims as proof obligations"),
+    "generate": ("derive.generate", "write the C and Python controllers of an arm"),
 }
 
 

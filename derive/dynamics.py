@@ -17,6 +17,7 @@ inertia; the rotor's gyroscopic coupling with the carrying link is neglected).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import sympy as sp
 
@@ -53,8 +54,12 @@ class Dynamics:
     damping: sp.Matrix
     G: sp.Matrix
     B: sp.Matrix
-    coriolis: sp.Matrix
     gravity: sp.Matrix
+
+    @cached_property
+    def coriolis(self) -> sp.Matrix:
+        """n x n Christoffel matrix C(theta, theta'), computed on first use."""
+        return christoffel(self.J, self.sym.theta, self.sym.dtheta)
 
 
 def lumped_bodies(arm: Arm, p: ParamSymbols) -> tuple[Body, ...]:
@@ -208,7 +213,7 @@ def derive_dynamics(arm: Arm) -> Dynamics:
     G = bias + damping * sp.Matrix(s.dtheta)
     B = sp.diag(*[p.gear[i] * p.Kt[i] / p.R[i] for i in range(n)])
     return Dynamics(sym=s, params=p, bodies=bodies, J=J, bias=bias, damping=damping, G=G, B=B,
-                    coriolis=christoffel(J, s.theta, s.dtheta), gravity=gravity)
+                    gravity=gravity)
 
 
 def lagrange_reference(arm: Arm, dyn: Dynamics) -> tuple[sp.Matrix, sp.Matrix]:

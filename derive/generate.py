@@ -1,0 +1,36 @@
+"""``derive generate``: derive an arm and write generated/<arm>/ atomically."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .codegen import REALS, generate_files
+from .emit import write_tree
+from .kernels import ParamsMode
+
+
+def add_arguments(parser) -> None:
+    """CLI: derive generate [ARM] [--out DIR] [--real double|float] [--params baked|runtime]."""
+    from .cli import add_arm_argument
+
+    add_arm_argument(parser)
+    parser.add_argument("--out", default="generated",
+                        help="parent folder; the arm's files go to OUT/<arm>/ (default: generated)")
+    parser.add_argument("--real", choices=REALS, default="double", help="C real type (default double)")
+    parser.add_argument("--params", choices=[m.value for m in ParamsMode], default="baked",
+                        help="parameters folded into constants (baked) or read at run time")
+
+
+def run(args) -> int:
+    from .cli import report_warnings
+    from .pipeline import derive
+    from .spec import load_arm, resolve_arm_path
+
+    arm = load_arm(args.arm)
+    d = derive(arm)
+    report_warnings(d)
+    files = generate_files(d, resolve_arm_path(args.arm).read_bytes(), args.real, ParamsMode(args.params))
+    target = Path(args.out) / arm.name
+    write_tree(target, files)
+    print(f"derive: wrote {len(files)} files to {target}", file=sys.stderr)
+    return 0

@@ -128,6 +128,7 @@ class SelftestView:
     dt: str
     c128: str
     c05: str
+    fabs: str
     tol: Tolerances
 
 
@@ -143,13 +144,13 @@ def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
     seq = {k: lit(val) for k, val in tv.sequence(ref).items()}
     ops = {k.name: k.operations for k in v.kernels}
     if v.real == "double":
-        tol = Tolerances(*(repr(tv.DOUBLE_TOL),) * 7)
+        tol = Tolerances(*(c_literal(tv.DOUBLE_TOL, "double"),) * 7)
         rule = f"double {tv.DOUBLE_TOL:g}"
     else:
-        b = lambda *names, steps=0: repr(tv.float_bound(sum(ops[n] for n in names), steps))  # noqa: E731
+        b = lambda *names, steps=0: c_literal(tv.float_bound(sum(ops[n] for n in names), steps), "float")  # noqa: E731
         tol = Tolerances(b("gains"), b("mpc"), b("npid"), b("dobc"), b("dobc_init"), b("dobc", "observer"),
                          b("npid", "dobc", "observer", steps=tv.SEQUENCE_STEPS))
         rule = "float 16 (K + steps) 2^-24 for a kernel of K operations (derive.testvectors)"
     return SelftestView(rule=rule, cases=cases, seq=type("Seq", (), seq), steps=tv.SEQUENCE_STEPS,
                         dt=c_literal(tv.SEQUENCE_DT, v.real), c128=c_literal(128.0, v.real),
-                        c05=c_literal(0.5, v.real), tol=tol)
+                        c05=c_literal(0.5, v.real), fabs="fabsf" if v.real == "float" else "fabs", tol=tol)

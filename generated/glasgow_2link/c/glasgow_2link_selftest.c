@@ -59,21 +59,21 @@ static const real seq_z[N] = { 0.1267181396484375, 0.1571075439453125 };
 
 static int passed, failed;
 
-static void check(const char *what, int index, const real *got, const real *want, int count, double tol)
+static void check(const char *what, int index, const real *got, const real *want, int count, real tol)
 {
-    double err = 0, scale = 0;
+    real err = 0, scale = 0;
     int i;
     for (i = 0; i < count; ++i) {
-        double d = fabs((double)got[i] - (double)want[i]);
+        real d = fabs(got[i] - want[i]);
         if (!(d <= err)) err = d; /* NaN propagates as a failure */
-        if (fabs((double)want[i]) > scale) scale = fabs((double)want[i]);
+        if (fabs(want[i]) > scale) scale = fabs(want[i]);
     }
     if (scale > 0) err /= scale;
     if (err <= tol) {
         ++passed;
     } else {
         ++failed;
-        printf("FAIL %s case %d: relative error %g > %g\n", what, index, err, tol);
+        printf("FAIL %s case %d: relative error %g > %g\n", what, index, (double)err, (double)tol);
     }
 }
 

@@ -1,0 +1,259 @@
+"""Generated C and Python against the SymPy derivation (eq. 15, 21-27, 34-38).
+
+Every comparison is with derive.reference (40-digit mpmath evaluation of the
+SymPy matrices), never between two outputs of the same printer alone.
+"""
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import derive
+from derive import testvectors as tv
+from derive.codegen import generate_files
+from derive.emit import write_tree
+from derive.kernels import ParamsMode
+from derive.reference import Reference
+from derive.spec import resolve_arm_path
+
+from .cbuild import STRICT, CLib, compile_c, compilers, library_sources
+
+ROOT = Path(__file__).resolve().parent.parent
+ARM = "glasgow_2link"
+STATES = 200
+
+
+def _generate(tmp: Path, real: str = "double", mode: ParamsMode = ParamsMode.BAKED, arm: str | None = None) -> Path:
+    d = _derivation(arm)
+    files = generate_files(d, resolve_arm_path(arm).read_bytes(), real, mode)
+    target = tmp / f"{d.arm.name}_{real}_{mode.value}"
+    write_tree(target, files)
+    return target
+
+
+_CACHE: dict = {}
+
+
+def _derivation(arm=None):
+    if arm not in _CACHE:
+        _CACHE[arm] = derive.derive(derive.load_arm(arm))
+    return _CACHE[arm]
+
+
+@pytest.fixture(scope="module")
+def paper_ref():
+    return Reference(_derivation())
+
+
+@pytest.fixture(scope="module")
+def states(paper_ref):
+    rng = np.random.default_rng(4242)
+    n = paper_ref.n
+    out = []
+    for _ in range(STATES):
+        x = list(np.concatenate([rng.uniform(-3, 3, 3 * n), rng.uniform(-2, 2, n), rng.uniform(-5, 5, n)]))
+        out.append((x, list(rng.uniform(-1, 1, n)), list(rng.uniform(-1, 1, n))))
+    return out
+
+
+def _rel(got, want) -> float:
+    want = np.asarray([float(w) for w in want])
+    scale = np.max(np.abs(want))
+    return float(np.max(np.abs(np.asarray(got, dtype=float) - want)) / (scale if scale > 0 else 1.0))
+
+
+def _compare(impl, ref, states, tol, dt=1e-3):
+    """Every output of ``impl`` against the reference; the message names the output."""
+    n = ref.n
+    worst: dict[str, float] = {}
+    for k, (x, int_e, z) in enumerate(states):
+        checks = {
+            "gains P,D,I": (impl.gains(x[:n]), ref.gains(x[:n])),
+            "mpc_step u": (impl.mpc_step(x)[1], ref.mpc_step(x)),
+            "dobc_init z0": (impl.init("dobc", x)[1], ref.dobc_init(x)),
+        }
+        code, u, nxt = impl.step("npid", int_e, x, dt)
+        ru, rn = ref.npid_step(int_e, x, dt)
+        checks["npid_step u"], checks["npid_step int_e"] = (u, ru), (nxt, rn)
+        code2, u, nxt = impl.step("dobc", z, x, dt)
+        ru, rn = ref.dobc_step(z, x, dt)
+        checks["dobc_step u"], checks["dobc_step z"] = (u, ru), (nxt, rn)
+        assert code == 0 and code2 == 0
+        for name, (got, want) in checks.items():
+            err = _rel(got, want)
+            worst[name] = max(worst.get(name, 0.0), err)
+            assert err <= tol, f"{name} at state {k} ({x}): relative error {err:.3g} > {tol:.3g}"
+    return worst
+
+
+class PyImpl:
+    """The generated Python module behind the same small interface as CLib."""
+
+    def __init__(self, path: Path):
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        self.m = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(self.m)
+        self.n = self.m.N
+
+    def _inp(self, x):
+        n = self.n
+        return self.m.Input(*(x[i * n:(i + 1) * n] for i in range(5)))
+
+    def gains(self, theta):
+        return np.concatenate([g.ravel() for g in self.m.gains(theta)])
+
+    def mpc_step(self, x):
+        return self.m.mpc_step(self._inp(x))
+
+    def init(self, form, x):
+        state = self.m.NpidState() if form == "npid" else self.m.DobcState()
+        code = getattr(self.m, f"{form}_init")(state, self._inp(x))
+        return code, np.array(state.int_e if form == "npid" else state.z)
+
+    def step(self, form, values, x, dt):
+        state = self.m.NpidState() if form == "npid" else self.m.DobcState()
+        setattr(state, "int_e" if form == "npid" else "z", list(values))
+        code, u = getattr(self.m, f"{form}_step")(state, self._inp(x), dt)
+        return code, u, np.array(state.int_e if form == "npid" else state.z)
+
+
+def test_eq34_compiled_c_double_matches_sympy_at_200_states(tmp_path, paper_ref, states):
+    out = _generate(tmp_path)
+    lib = CLib(out / "c", ARM, 2, "double", False, tmp_path)
+    _compare(lib, paper_ref, states, tv.DOUBLE_TOL)
+
+
+def test_eq34_python_module_matches_sympy_at_200_states(tmp_path, paper_ref, states):
+    out = _generate(tmp_path)
+    _compare(PyImpl(out / "python" / f"{ARM}.py"), paper_ref, states, tv.DOUBLE_TOL)
+
+
+def test_float_c_within_stated_bound(tmp_path, paper_ref, states):
+    """Float results within 16 K 2^-24 (K = operations of the largest kernel used)."""
+    from derive.views import arm_view
+
+    v = arm_view(_derivation(), "float", ParamsMode.BAKED)
+    bound = tv.float_bound(sum(k.operations for k in v.kernels if k.name in ("dobc", "observer")))
+    out = _generate(tmp_path, "float")
+    lib = CLib(out / "c", ARM, 2, "float", False, tmp_path)
+    worst = _compare(lib, paper_ref, states[:50], bound)
+    assert max(worst.values()) > 1e-9  # really single precision, not double in disguise
+
+
+def test_runtime_parameters_agree_with_baked_to_1e12(tmp_path, paper_ref, states):
+    d = _derivation()
+    baked = CLib(_generate(tmp_path) / "c", ARM, 2, "double", False, tmp_path)
+    runtime = CLib(_generate(tmp_path, mode=ParamsMode.RUNTIME) / "c", ARM, 2, "double", True, tmp_path,
+                   np_count=len(d.values))
+    for x, int_e, z in states:
+        for form, s in (("npid", int_e), ("dobc", z)):
+            a, b = baked.step(form, s, x, 1e-3), runtime.step(form, s, x, 1e-3)
+            assert _rel(b[1], a[1]) <= 1e-12 and _rel(b[2], a[2]) <= 1e-12, form
+        assert _rel(runtime.gains(x[:2]), baked.gains(x[:2])) <= 1e-12
+
+
+def test_runtime_parameters_really_change_the_law(tmp_path, states):
+    d = _derivation()
+    lib = CLib(_generate(tmp_path, mode=ParamsMode.RUNTIME) / "c", ARM, 2, "double", True, tmp_path,
+               np_count=len(d.values))
+    x = states[0][0]
+    before = lib.mpc_step(x)[1]
+    names = [str(s) for s, _ in d.values]
+    lib.params[names.index("mp2")] *= 2  # a heavier tip
+    assert _rel(lib.mpc_step(x)[1], before) > 1e-3
+
+
+@pytest.mark.parametrize("cc", compilers())
+@pytest.mark.parametrize("real,mode", [("double", "baked"), ("float", "baked"), ("double", "runtime"),
+                                       ("float", "runtime")])
+def test_selftest_compiles_strictly_and_passes(tmp_path, cc, real, mode):
+    out = _generate(tmp_path, real, ParamsMode(mode)) / "c"
+    exe = compile_c(cc, [out / f"{ARM}_selftest.c", *library_sources(out, ARM)], tmp_path / "st", ["-O2"])
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout
+    assert re.search(r"^\d+ passed, 0 failed$", proc.stdout, re.M), proc.stdout
+
+
+def test_committed_selftest_passes_under_address_and_undefined_sanitizers(tmp_path):
+    c = ROOT / "generated" / ARM / "c"
+    exe = compile_c("gcc", [c / f"{ARM}_selftest.c", *library_sources(c, ARM)], tmp_path / "st",
+                    ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"])
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and "0 failed" in proc.stdout, proc.stdout + proc.stderr
+
+
+def test_committed_selftest_passes_under_valgrind(tmp_path):
+    c = ROOT / "generated" / ARM / "c"
+    exe = compile_c("gcc", [c / f"{ARM}_selftest.c", *library_sources(c, ARM)], tmp_path / "st", ["-O0", "-g"])
+    proc = subprocess.run(["valgrind", "--error-exitcode=3", "--leak-check=full", "--errors-for-leak-kinds=all",
+                           str(exe)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in proc.stderr
+
+
+def test_cmake_builds_the_static_library_and_runs_the_selftest(tmp_path):
+    src = ROOT / "generated" / ARM / "c"
+    build = tmp_path / "build"
+    for cmd in (["cmake", "-S", str(src), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release"],
+                ["cmake", "--build", str(build)], ["ctest", "--test-dir", str(build), "--output-on-failure"]):
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (build / f"lib{ARM}.a").is_file()
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_library_objects_call_no_allocator_and_write_no_globals(tmp_path, real):
+    out = _generate(tmp_path, real) / "c"
+    allowed = {"sin", "cos", "sincos", "sinf", "cosf", "sincosf", "sqrt", "sqrtf"}  # libm only
+    for src in library_sources(out, ARM):
+        obj = compile_c("gcc", [src], tmp_path / (src.stem + ".o"), ["-O2", "-c"])
+        undefined = subprocess.run(["nm", "-u", str(obj)], capture_output=True, text=True).stdout.split()
+        names = {w for w in undefined if w not in ("U", "w")}
+        names = {n for n in names if not n.startswith(f"{ARM}_")}
+        assert names <= allowed, f"{src.name} calls {sorted(names - allowed)}"
+        table = subprocess.run(["nm", str(obj)], capture_output=True, text=True).stdout
+        writable = [line for line in table.splitlines() if re.search(r"\s[DdBbCG]\s", line)]
+        assert not writable, f"{src.name} has writable data: {writable}"
+
+
+def test_float_output_has_no_double_literal_or_double_libm_call(tmp_path):
+    out = _generate(tmp_path, "float") / "c"
+    literal = re.compile(r"(?<![\w.])(\d+\.\d*|\.\d+|\d+\.?\d*[eE][-+]?\d+)(?![\w.])(?!f)")
+    call = re.compile(r"\b(sin|cos|tan|sqrt|fabs|pow|exp|log)\s*\(")
+    for path in sorted(out.glob("*.[ch]")):
+        text = re.sub(r"/\*.*?\*/", "", path.read_text(), flags=re.S)
+        text = text.replace("(double)err, (double)tol", "")  # printf's own promotion, in the self-test
+        assert not literal.findall(text), f"{path.name}: double literals {literal.findall(text)[:5]}"
+        assert not call.findall(text), f"{path.name}: double libm calls {call.findall(text)[:5]}"
+        assert "double" not in text, path.name
+
+
+def test_double_output_really_is_double(tmp_path):
+    out = _generate(tmp_path) / "c"
+    text = (out / f"{ARM}_kernels.c").read_text()
+    assert "cos(" in text and "cosf(" not in text
+
+
+@pytest.mark.parametrize("impl", ["c", "python"])
+def test_nonfinite_input_returns_error_and_leaves_state_untouched(tmp_path, states, impl):
+    out = _generate(tmp_path)
+    lib = CLib(out / "c", ARM, 2, "double", False, tmp_path) if impl == "c" else PyImpl(out / "python" / f"{ARM}.py")
+    x, int_e, z = states[0]
+    for bad in (float("nan"), float("inf"), -float("inf")):
+        for i in range(10):
+            xb = list(x)
+            xb[i] = bad
+            for form, s in (("npid", int_e), ("dobc", z)):
+                code, _, nxt = lib.step(form, s, xb, 1e-3)
+                assert code == 1 and list(nxt) == list(s), (form, i, bad)
+            assert lib.mpc_step(xb)[0] == 1
+            assert lib.init("dobc", xb)[0] == 1
+        for dt in (0.0, -1e-3, bad):
+            code, _, nxt = lib.step("npid", int_e, x, dt)
+            assert code == 2 and list(nxt) == list(int_e)

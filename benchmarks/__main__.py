@@ -12,7 +12,7 @@ import platform
 import sys
 import time
 
-SECTIONS: tuple[str, ...] = ("dynamics",)
+SECTIONS: tuple[str, ...] = ("dynamics", "codegen")
 
 
 def main(names: tuple[str, ...] = SECTIONS) -> int:

@@ -2,8 +2,11 @@
 
 Every number is kept exact as a :class:`fractions.Fraction` of the decimal the
 file wrote (0.38 is 19/50, not the nearest double), so that symbolic identities
-hold exactly and generated constants round once. Every problem in a file is
-collected and reported in one :class:`SpecError`.
+hold exactly and generated constants round once. Numbers must be finite doubles
+(TOML reads ``nan``, ``inf`` and ``1e400`` -> inf; none is accepted). Every
+problem in a file is collected and reported in one :class:`SpecError`, each
+naming the field (``link[2].mass``), the expected (``a finite number > 0 (kg)``)
+and the given value (``-0.3``, ``string 'abc'``); unknown keys are problems too.
 
 The model (see README, "Describing an arm"): a planar serial chain of n >= 1
 revolute joints, angles relative to the previous link (eq. a6 uses theta_2 so);
@@ -11,8 +14,7 @@ gravity, when given, acts along -y of the base frame with theta = 0 along +x.
 """
 from __future__ import annotations
 
-import math
-import re
+import numbers
 import tomllib
 from dataclasses import dataclass
 from fractions import Fraction
@@ -20,13 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from .errors import Problem, SpecError
-from .names import name_problem
+from .fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show, text_problem
+from .names import name_check
 
 DEFAULT_ARM = "glasgow_2link"
 ARMS_DIR = Path(__file__).parent / "arms"
-
-_FRACTION_STRING = re.compile(r"\s*[0-9]+(\.[0-9]+)?([eE][-+]?[0-9]+)?\s*/\s*[0-9]+(\.[0-9]+)?([eE][-+]?[0-9]+)?\s*\Z")
 UNIFORM_ROD = "uniform_rod"
+MAX_FILE_BYTES = 1 << 20   # an arm file is a few kB; never read /dev/zero whole
+_MISSING = object()
+_ZERO = Fraction(0)
 
 
 @dataclass(frozen=True)
@@ -114,255 +118,250 @@ def resolve_arm_path(arm: str | Path | None) -> Path:
 def load_arm(path: str | Path | None = None) -> Arm:
     """Read and validate an arm file; None loads the packaged default arm.
 
-    Raises SpecError listing every problem (a missing or unreadable file too).
+    Raises SpecError listing every problem (a missing, unreadable, oversized,
+    non-UTF-8 or non-TOML file, or a file name unfit for generated comments, too).
     """
     file = resolve_arm_path(path)
     source = str(file)
+
+    def fail(expected: str, given: str) -> SpecError:
+        return SpecError(printable(source), [Problem("file", expected, given)])
+
     try:
-        raw = file.read_bytes()
+        with open(file, "rb") as stream:
+            raw = stream.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
-        raise SpecError(source, [Problem("file", "a readable arm file (TOML)",
-                                         exc.strerror or type(exc).__name__)]) from None
+        raise fail("a readable arm file (TOML)", exc.strerror or type(exc).__name__) from None
+    except ValueError as exc:  # a NUL byte in the path
+        raise fail("a readable arm file (TOML)", f"an unusable path ({exc})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise fail(f"an arm file of at most {MAX_FILE_BYTES} bytes", "a larger file")
+    if (why := text_problem(file.name)) is not None:  # the name goes into generated comments
+        raise fail(f"a file name that is {TEXT_RULE}", f"{inline(file.name)} ({why})")
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        data = tomllib.loads(raw.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
-        raise SpecError(source, [Problem("file", "UTF-8 text", f"undecodable byte at {exc.start}")]) from None
+        raise fail("UTF-8 text", f"byte 0x{raw[exc.start]:02x} at offset {exc.start}") from None
     except tomllib.TOMLDecodeError as exc:
-        raise SpecError(source, [Problem("file", "valid TOML", str(exc))]) from None
+        raise fail("valid TOML", str(exc)) from None
+    except RecursionError:
+        raise fail("valid TOML", "arrays or tables nested too deeply to read") from None
+    except ValueError as exc:  # an integer beyond Python's digit limit
+        raise fail("valid TOML with numbers a double can hold", str(exc).split(";")[0]) from None
     return arm_from_dict(data, source)
 
 
-class _Reader:
-    """Collects problems while reading a nested mapping."""
+# -- the schema ---------------------------------------------------------------------------
 
-    def __init__(self) -> None:
-        self.problems: list[Problem] = []
-
-    def bad(self, field: str, expected: str, given: Any) -> None:
-        shown = given if isinstance(given, str) and given.startswith("<") else _show(given)
-        self.problems.append(Problem(field, expected, shown))
-
-    def table(self, data: Any, field: str, allowed: set[str], required: set[str]) -> dict:
-        if not isinstance(data, dict):
-            self.bad(field, "a table", data)
-            return {}
-        for key in sorted(set(data) - allowed):
-            self.bad(f"{field}.{key}" if field else key, f"no such key (allowed: {', '.join(sorted(allowed))})",
-                     "<present>")
-        for key in sorted(required - set(data)):
-            self.bad(f"{field}.{key}" if field else key, "a value", "<missing>")
-        return data
-
-    def number(self, data: dict, key: str, field: str, *, default: Fraction | None = None,
-               low: Fraction | None = None, strict: bool = False, optional: bool = False) -> Fraction | None:
-        name = f"{field}.{key}"
-        if key not in data:
-            return default
-        value = data[key]
-        bound = ""
-        if low is not None:
-            bound = f" {'>' if strict else '>='} {_fmt(low)}"
-        expected = f"a finite number{bound}"
-        frac = _to_fraction(value)
-        if frac is None:
-            self.bad(name, expected, value)
-            return None
-        if low is not None and (frac < low or (strict and frac == low)):
-            self.bad(name, expected, value)
-            return None
-        return frac
-
-    def array(self, data: dict, key: str, field: str, length: int) -> list | None:
-        if key not in data:
-            return None
-        value = data[key]
-        if not isinstance(value, list) or len(value) != length:
-            self.bad(f"{field}.{key}", f"an array of {length} numbers (one per joint)", value)
-            return None
-        return value
-
-
-def _fmt(x: Fraction) -> str:
-    return str(int(x)) if x.denominator == 1 else str(float(x))
-
-
-def _show(value: Any) -> str:
-    if isinstance(value, bool):
-        return f"boolean {str(value).lower()}"
-    if isinstance(value, str):
-        text = value if len(value) <= 60 else value[:60] + f"... ({len(value)} characters)"
-        return f"string {text!r}"
-    if isinstance(value, float) and not math.isfinite(value):
-        return f"{value} (non-finite; TOML reads 1e400 as inf)"
-    if isinstance(value, (dict, list)):
-        return f"{type(value).__name__} {str(value)[:60]}"
-    return repr(value)
-
-
-def _to_fraction(value: Any) -> Fraction | None:
-    """Exact value of a TOML number or a 'p/q' string; None if not a finite number."""
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, int):
-        return Fraction(value)
-    if isinstance(value, float):
-        return Fraction(repr(value)) if math.isfinite(value) else None
-    if isinstance(value, str) and _FRACTION_STRING.match(value):
-        num, den = (Fraction(part.strip()) for part in value.split("/"))
-        return num / den if den != 0 else None
-    return None
+LINK_INERTIA = Num("kg m^2, about the centre of mass", _ZERO, alternative=" or 'uniform_rod' (m l^2 / 12)")
+TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": "one [[link]] table per joint, base to tip",
+            "point_mass": None, "motor": "one [[motor]] table per joint",
+            "controller": "a table [controller] with T1, T2 and w"}
+ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
+            "description": None, "gravity": None}
+LINK_KEYS = {"length": POSITIVE["m"].expected, "mass": POSITIVE["kg"].expected, "com": None,
+             "inertia": None, "viscous_friction": None}
+PM_KEYS = {"link": "the number of the link that carries it", "distance": ANY["m"].expected,
+           "mass": POSITIVE["kg"].expected, "inertia": None, "label": None}
+MOTOR_KEYS = {"torque_constant": POSITIVE["N m/A"].expected, "voltage_constant": NONNEGATIVE["V s/rad"].expected,
+              "resistance": POSITIVE["ohm"].expected, "gear_ratio": None, "rotor_inertia": None,
+              "voltage_limit": None}
+CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
+                   "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None}
 
 
 def arm_from_dict(data: Any, source: str = "<dict>") -> Arm:
     """Validate a parsed arm mapping; raise SpecError with every problem."""
-    r = _Reader()
-    top = r.table(data, "", {"arm", "link", "point_mass", "motor", "controller"},
-                  {"arm", "link", "motor", "controller"})
-    head = r.table(top.get("arm", {}), "arm", {"name", "description", "gravity"}, {"name"})
-    name = head.get("name", "")
-    why = name_problem(name)
-    if why and "name" in head:
-        r.problems.append(Problem("arm.name", why.split(", got ")[0], why.split(", got ", 1)[-1]))
-    description = head.get("description", "")
-    if not isinstance(description, str):
-        r.bad("arm.description", "a string", description)
-    gravity = r.number(head, "gravity", "arm", default=Fraction(0), low=Fraction(0))
-
-    links = _links(r, top.get("link"))
-    n = len(links)
+    r = Reader()
+    if isinstance(data, dict):
+        top = r.table(data, "", TOP_KEYS, "")
+    else:
+        r.bad("arm file", "a table of [arm], [[link]], [[motor]] and [controller]", data)
+        top = {}
+    name, description, gravity = _head(r, top.get("arm", _MISSING))
+    links = _links(r, top.get("link", _MISSING))
+    n = None if links is None else len(links)
     point_masses = _point_masses(r, top.get("point_mass", []), n)
-    motors = _motors(r, top.get("motor"), n)
-    controller = _controller(r, top.get("controller", {}), n)
+    motors = _motors(r, top.get("motor", _MISSING), n)
+    controller = _controller(r, top.get("controller", _MISSING), n)
+    if links:
+        _last_joint_inertia(r, links, point_masses, motors)
     if r.problems:
-        raise SpecError(source, r.problems)
+        raise SpecError(printable(source), r.problems)
     return Arm(name=name, description=description, gravity=gravity, links=tuple(links),
-               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller,
-               source=source)
+               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source)
 
 
-def _entries(r: _Reader, value: Any, field: str) -> list:
-    if value is None:
-        return []
+def _head(r: Reader, value: Any) -> tuple[str, str, Fraction | None]:
+    d = None if value is _MISSING else r.table(value, "arm", ARM_KEYS, "a table [arm] with at least a name")
+    if d is None:
+        return "", "", _ZERO
+    name = d.get("name", "")
+    if "name" in d and (found := name_check(name)):
+        r.add("arm.name", found[0], found[1] if isinstance(name, str) else show(name))
+    return name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", NONNEGATIVE["m/s^2"], _ZERO)
+
+
+def _array_of_tables(r: Reader, value: Any, field: str) -> list | None:
     if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        r.bad(field, f"an array of tables ([[{field}]])", value)
-        return []
+        r.bad(field, f"an array of tables ([[{field}]] sections)", value)
+        return None
     return value
 
 
-def _links(r: _Reader, value: Any) -> list[Link]:
-    entries = _entries(r, value, "link")
-    if value is not None and not entries and not r.problems:
-        r.bad("link", "at least one [[link]] (n >= 1 joints)", "<none>")
+def _links(r: Reader, value: Any) -> list[Link] | None:
+    """The links, or None when the number of joints is unknown."""
+    if value is _MISSING or (entries := _array_of_tables(r, value, "link")) is None:
+        return None
+    if not entries:
+        r.add("link", "at least one [[link]] table (n >= 1 joints)", "an empty array (0 links)")
+        return None
     links = []
-    for i, entry in enumerate(entries):
-        f = f"link[{i + 1}]"
-        d = r.table(entry, f, {"length", "mass", "com", "inertia", "viscous_friction"}, {"length", "mass"})
-        length = r.number(d, "length", f, low=Fraction(0), strict=True)
-        mass = r.number(d, "mass", f, low=Fraction(0), strict=True)
-        com = r.number(d, "com", f, default=length / 2 if length else None)
-        inertia = None
-        if d.get("inertia", UNIFORM_ROD) == UNIFORM_ROD:
-            if mass is not None and length is not None:
-                inertia = mass * length ** 2 / 12
+    for i, entry in enumerate(entries, 1):
+        f = f"link[{i}]"
+        d = r.table(entry, f, LINK_KEYS, "a table")
+        length = r.number(d, "length", f, POSITIVE["m"])
+        mass = r.number(d, "mass", f, POSITIVE["kg"])
+        com = r.number(d, "com", f, ANY["m"], None if length is None else length / 2)
+        rod = d.get("inertia", UNIFORM_ROD)
+        if isinstance(rod, str) and rod == UNIFORM_ROD:
+            inertia = None if mass is None or length is None else mass * length ** 2 / 12
         else:
-            inertia = r.number(d, "inertia", f, low=Fraction(0))
-            if inertia is None and "inertia" in d:
-                r.problems[-1] = Problem(f"{f}.inertia", f"a finite number >= 0 or '{UNIFORM_ROD}'",
-                                         r.problems[-1].given)
-        friction = r.number(d, "viscous_friction", f, default=Fraction(0), low=Fraction(0))
+            inertia = r.value(rod, f"{f}.inertia", LINK_INERTIA)
+        friction = r.number(d, "viscous_friction", f, NONNEGATIVE["N m s/rad"], _ZERO)
         links.append(Link(length, mass, com, inertia, friction))
     return links
 
 
-def _point_masses(r: _Reader, value: Any, n: int) -> list[PointMass]:
+def _point_masses(r: Reader, value: Any, n: int | None) -> list[PointMass]:
     out = []
-    for i, entry in enumerate(_entries(r, value, "point_mass")):
-        f = f"point_mass[{i + 1}]"
-        d = r.table(entry, f, {"link", "distance", "mass", "inertia", "label"}, {"link", "distance", "mass"})
+    for i, entry in enumerate(_array_of_tables(r, value, "point_mass") or [], 1):
+        f = f"point_mass[{i}]"
+        d = r.table(entry, f, PM_KEYS, "a table")
         link = d.get("link")
-        if "link" in d and (not isinstance(link, int) or isinstance(link, bool) or not 1 <= link <= n):
-            r.bad(f"{f}.link", f"a link number from 1 to {n}", link)
-            link = None
-        label = d.get("label", "")
-        if not isinstance(label, str):
-            r.bad(f"{f}.label", "a string", label)
-        distance = r.number(d, "distance", f)
-        mass = r.number(d, "mass", f, low=Fraction(0), strict=True)
-        inertia = r.number(d, "inertia", f, default=Fraction(0), low=Fraction(0))
-        out.append(PointMass((link or 1) - 1, distance, mass, inertia, label if isinstance(label, str) else ""))
+        ok = (isinstance(link, numbers.Integral) and not isinstance(link, bool)
+              and 1 <= link <= (n if n is not None else link))
+        if "link" in d and not ok:
+            r.bad(f"{f}.link", f"a link number from 1 to {n}" if n else "a link number >= 1", link)
+        out.append(PointMass(int(link) - 1 if ok else -1, r.number(d, "distance", f, ANY["m"]),
+                             r.number(d, "mass", f, POSITIVE["kg"]),
+                             r.number(d, "inertia", f, NONNEGATIVE["kg m^2"], _ZERO), r.text(d, "label", f)))
     return out
 
 
-def _motors(r: _Reader, value: Any, n: int) -> list[Motor]:
-    entries = _entries(r, value, "motor")
-    if value is not None and len(entries) != n and n:
-        r.bad("motor", f"one [[motor]] per joint ({n})", f"{len(entries)}")
+def _motors(r: Reader, value: Any, n: int | None) -> list[Motor]:
+    if value is _MISSING or (entries := _array_of_tables(r, value, "motor")) is None:
+        return []
+    if n is not None and len(entries) != n:
+        r.add("motor", f"one [[motor]] table per joint: {n}, as many as [[link]]",
+              f"{len(entries)} [[motor]] table{'' if len(entries) == 1 else 's'}")
     out = []
-    for i, entry in enumerate(entries):
-        f = f"motor[{i + 1}]"
-        d = r.table(entry, f, {"torque_constant", "voltage_constant", "resistance", "gear_ratio",
-                               "rotor_inertia", "voltage_limit"},
-                    {"torque_constant", "voltage_constant", "resistance"})
-        zero = Fraction(0)
+    for i, entry in enumerate(entries, 1):
+        f = f"motor[{i}]"
+        d = r.table(entry, f, MOTOR_KEYS, "a table")
         out.append(Motor(
-            torque_constant=r.number(d, "torque_constant", f, low=zero, strict=True),
-            voltage_constant=r.number(d, "voltage_constant", f, low=zero),
-            resistance=r.number(d, "resistance", f, low=zero, strict=True),
-            gear_ratio=r.number(d, "gear_ratio", f, default=Fraction(1), low=zero, strict=True),
-            rotor_inertia=r.number(d, "rotor_inertia", f, default=zero, low=zero),
-            voltage_limit=r.number(d, "voltage_limit", f, low=zero, strict=True),
-        ))
+            torque_constant=r.number(d, "torque_constant", f, POSITIVE["N m/A"]),
+            voltage_constant=r.number(d, "voltage_constant", f, NONNEGATIVE["V s/rad"]),
+            resistance=r.number(d, "resistance", f, POSITIVE["ohm"]),
+            gear_ratio=r.number(d, "gear_ratio", f, POSITIVE[""], Fraction(1)),
+            rotor_inertia=r.number(d, "rotor_inertia", f, NONNEGATIVE["kg m^2"], _ZERO),
+            voltage_limit=r.number(d, "voltage_limit", f, POSITIVE["V"])))
     return out
 
 
-def _controller(r: _Reader, value: Any, n: int) -> Controller:
+def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
     f = "controller"
-    d = r.table(value, f, {"T1", "T2", "w", "C", "max_joint_speed"}, {"T1", "T2", "w"})
-    zero = Fraction(0)
-    T1 = r.number(d, "T1", f, low=zero)
-    T2 = r.number(d, "T2", f, low=zero, strict=True)
+    d = None if value is _MISSING else r.table(value, f, CONTROLLER_KEYS, "a table [controller] with T1, T2 and w")
+    if d is None:
+        return None
+    T1, T2 = r.number(d, "T1", f, NONNEGATIVE["s"]), r.number(d, "T2", f, POSITIVE["s"])
     if T1 is not None and T2 is not None and T1 >= T2:
-        r.bad("controller.T2", f"T2 > T1 = {_fmt(T1)} (prediction horizon, eq. 14)", d["T2"])
-    w = _numbers(r, d, "w", n)
+        shown = show(d["T2"]) + (f" (= {fmt(T2)})" if isinstance(d["T2"], str) else "")
+        r.add("controller.T2", f"a number > T1 = {fmt(T1)} (s; the prediction horizon [T1, T2] of eq. 14)", shown)
+    w = _vector(r, d, "w", n, ANY["1/s"])
     if w and None not in w:
         if w[0] <= 0:
-            r.bad("controller.w[1]", "w1 > 0 (observer gain, eq. 26)", d["w"][0])
-        for i in range(1, n):
+            r.add("controller.w[1]", "w1 > 0 (observer gain, eq. 26)", show(d["w"][0]))
+        for i in range(1, len(w)):
             if w[i] < w[i - 1]:
-                r.bad(f"controller.w[{i + 1}]", f"w{i + 1} >= w{i} = {_fmt(w[i - 1])} (eq. 26: w2 >= w1)",
-                      d["w"][i])
-    speeds = _numbers(r, d, "max_joint_speed", n, low=zero)
+                r.add(f"controller.w[{i + 1}]", f"w{i + 1} >= w{i} = {fmt(w[i - 1])} "
+                      "(eq. 26: nondecreasing observer gains)", show(d["w"][i]))
+    speeds = _vector(r, d, "max_joint_speed", n, POSITIVE["rad/s"])
     C = _matrix(r, d.get("C"), n)
-    return Controller(T1, T2, tuple(w or ()), C, tuple(speeds) if speeds else None)
-
-
-def _numbers(r: _Reader, d: dict, key: str, n: int, low: Fraction | None = None) -> list | None:
-    values = r.array(d, key, "controller", n)
-    if values is None:
+    if None in (T1, T2) or not w or None in w or (speeds and None in speeds):
         return None
-    out = [r.number({key: v}, key, "controller", low=low, strict=low is not None) for v in values]
-    for i, v in enumerate(out):
-        if v is None:  # name the element, not the array
-            r.problems[-1] = Problem(f"controller.{key}[{i + 1}]", r.problems[-1].expected, r.problems[-1].given)
-            break
-    return out
+    return Controller(T1, T2, tuple(w), C, tuple(speeds) if speeds else None)
 
 
-def _matrix(r: _Reader, value: Any, n: int) -> tuple[tuple[Fraction, ...], ...]:
-    identity = tuple(tuple(Fraction(int(i == j)) for j in range(n)) for i in range(n))
+def _vector(r: Reader, d: dict, key: str, n: int | None, num: Num) -> list | None:
+    """An array of one number per joint (its entries named key[1], key[2], ...)."""
+    if key not in d:
+        return None
+    value, field = d[key], f"controller.{key}"
+    if not isinstance(value, list) or not value or (n is not None and len(value) != n):
+        count = "n numbers" if n is None else f"{n} number{'' if n == 1 else 's'}"
+        r.bad(field, f"an array of {count}, one per joint", value)
+        return None
+    return [r.value(x, f"{field}[{i}]", num) for i, x in enumerate(value, 1)]
+
+
+def _det(rows: list[list[Fraction]]) -> Fraction:
+    """Exact determinant by Gaussian elimination."""
+    a, det = [row[:] for row in rows], Fraction(1)
+    for c in range(len(a)):
+        pivot = next((i for i in range(c, len(a)) if a[i][c] != 0), None)
+        if pivot is None:
+            return _ZERO
+        if pivot != c:
+            a[c], a[pivot], det = a[pivot], a[c], -det
+        det *= a[c][c]
+        for i in range(c + 1, len(a)):
+            a[i] = [x - a[i][c] / a[c][c] * y for x, y in zip(a[i], a[c])]
+    return det
+
+
+def _matrix(r: Reader, value: Any, n: int | None) -> tuple[tuple[Fraction, ...], ...]:
+    """C of y = C theta (eq. 13): n x n and invertible; the identity when not given."""
+    identity = tuple(tuple(Fraction(int(i == j)) for j in range(n)) for i in range(n or 0))
     if value is None:
         return identity
-    rows = value if isinstance(value, list) and len(value) == n else None
-    if rows is None or not all(isinstance(row, list) and len(row) == n for row in rows):
-        r.bad("controller.C", f"an {n}x{n} array of numbers (output matrix, eq. 13)", value)
+    m = n if n is not None else (len(value) if isinstance(value, list) else 0)
+    if (not isinstance(value, list) or m == 0 or len(value) != m
+            or not all(isinstance(row, list) and len(row) == m for row in value)):
+        r.bad("controller.C", f"a {m or 'n'} x {m or 'n'} array of numbers "
+              "(the output matrix of y = C theta, eq. 13)", value)
         return identity
-    out = tuple(tuple(_to_fraction(x) for x in row) for row in rows)
-    if any(x is None for row in out for x in row):
-        r.bad("controller.C", "finite numbers in every entry", value)
+    rows = [[r.value(x, f"controller.C[{i}][{j}]", ANY[""]) for j, x in enumerate(row, 1)]
+            for i, row in enumerate(value, 1)]
+    if any(x is None for row in rows for x in row):
         return identity
-    import sympy  # local: the spec stays light for the common case of C = identity
+    if _det(rows) == 0:
+        r.add("controller.C", "an invertible matrix (u* of eq. 15 uses C^-1)",
+              f"the singular matrix {inline(value)} (det C = 0)")
+        return identity
+    return tuple(tuple(row) for row in rows)
 
-    if sympy.Matrix(out).det() == 0:
-        r.bad("controller.C", "a matrix of full rank (eq. 13)", value)
-        return identity
-    return out
+
+def _last_joint_inertia(r: Reader, links: list[Link], point_masses: list[PointMass],
+                        motors: list[Motor]) -> None:
+    """The last joint must move some inertia, else J(theta) is singular for every theta.
+
+    (An inner joint with nothing on its own link is a legitimate model: the
+    links beyond it move, and J can stay positive definite.)
+    """
+    n, link = len(links), links[-1]
+    if None in (link.mass, link.com, link.inertia) or any(p.link == -1 for p in point_masses):
+        return
+    total = link.inertia + link.mass * link.com ** 2
+    for p in (p for p in point_masses if p.link == n - 1):
+        if None in (p.mass, p.distance, p.inertia):
+            return
+        total += p.inertia + p.mass * p.distance ** 2
+    if len(motors) == n:
+        if None in (motors[-1].rotor_inertia, motors[-1].gear_ratio):
+            return
+        total += motors[-1].rotor_inertia * motors[-1].gear_ratio ** 2
+    if total == 0:
+        r.add(f"link[{n}]", f"an inertia about joint {n} > 0 (else J(theta) is singular): a com away "
+              "from the joint, an inertia > 0, a point mass away from the joint or a rotor_inertia > 0",
+              "0 kg m^2 (com = 0 and inertia = 0, nothing else on the last link)")

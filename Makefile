@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 
 generate: $(STAMP)
 	$(PY) -m derive generate --out generated
+	$(PY) -m derive simulate --out generated/glasgow_2link/sim --json generated/glasgow_2link/sim/metrics.json
 
 system-deps:
 	bash scripts/install-system-deps.sh

@@ -28,8 +28,11 @@ def _check_target(target: Path) -> None:
                         f"(with {MANIFEST}), got a folder with other files; refusing to replace it")
 
 
-def write_tree(target: Path, files: dict[str, str]) -> None:
-    """Replace folder ``target`` by exactly ``files`` (relative POSIX paths)."""
+def write_tree(target: Path, files: dict[str, str], binary: dict[str, bytes] | None = None,
+               keep: tuple[str, ...] = ()) -> None:
+    """Replace folder ``target`` by exactly ``files`` (text) and ``binary``
+    (relative POSIX paths); subfolders named in ``keep`` survive from the
+    previous output (e.g. the simulation results beside generated code)."""
     target = Path(target)
     _check_target(target)
     parent = target.parent
@@ -45,6 +48,14 @@ def write_tree(target: Path, files: dict[str, str]) -> None:
             path.parent.mkdir(parents=True, exist_ok=True)
             with open(path, "w", encoding="utf-8", newline="\n") as handle:
                 handle.write(text)
+        for rel, data in sorted((binary or {}).items()):
+            path = staging / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "wb") as handle:
+                handle.write(data)
+        for sub in keep:
+            if (target / sub).is_dir() and not (staging / sub).exists():
+                shutil.copytree(target / sub, staging / sub, symlinks=True)
         os.chmod(staging, 0o755)
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=parent))

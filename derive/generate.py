@@ -31,6 +31,6 @@ def run(args) -> int:
     report_warnings(d)
     files = generate_files(d, resolve_arm_path(args.arm).read_bytes(), args.real, ParamsMode(args.params))
     target = Path(args.out) / arm.name
-    write_tree(target, files)
+    write_tree(target, files, keep=("sim",))  # derive simulate's results survive regeneration
     print(f"derive: wrote {len(files)} files to {target}", file=sys.stderr)
     return 0

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numbers
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -24,6 +24,7 @@ from typing import Any
 from .errors import Problem, SpecError
 from .fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show, text_problem
 from .names import name_check
+from .simspec import SimSettings, parse_simulation
 
 DEFAULT_ARM = "glasgow_2link"
 ARMS_DIR = Path(__file__).parent / "arms"
@@ -93,6 +94,7 @@ class Arm:
     motors: tuple[Motor, ...]
     controller: Controller
     source: str
+    simulation: SimSettings = field(default_factory=SimSettings, compare=False)
 
     @property
     def n(self) -> int:
@@ -156,7 +158,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
 LINK_INERTIA = Num("kg m^2, about the centre of mass", _ZERO, alternative=" or 'uniform_rod' (m l^2 / 12)")
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": "one [[link]] table per joint, base to tip",
             "point_mass": None, "motor": "one [[motor]] table per joint",
-            "controller": "a table [controller] with T1, T2 and w"}
+            "controller": "a table [controller] with T1, T2 and w", "simulation": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None}
 LINK_KEYS = {"length": POSITIVE["m"].expected, "mass": POSITIVE["kg"].expected, "com": None,
@@ -186,10 +188,13 @@ def arm_from_dict(data: Any, source: str = "<dict>") -> Arm:
     controller = _controller(r, top.get("controller", _MISSING), n)
     if links:
         _last_joint_inertia(r, links, point_masses, motors)
+    simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
+    r.problems.extend(sim_problems if n else [])
     if r.problems:
         raise SpecError(printable(source), r.problems)
     return Arm(name=name, description=description, gravity=gravity, links=tuple(links),
-               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source)
+               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
+               simulation=simulation)
 
 
 def _head(r: Reader, value: Any) -> tuple[str, str, Fraction | None]:

@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: generate test bench venv clean system-deps
+.PHONY: generate test bench venv clean system-deps embedded
 
 venv: $(STAMP)
 
@@ -20,6 +20,11 @@ generate: $(STAMP)
 
 system-deps:
 	bash scripts/install-system-deps.sh
+
+# Cross-compile the controller with its self-test for Cortex-M4F (float) and
+# Cortex-M3 (double, float), run both on QEMU, report size, stack, instructions.
+embedded: $(STAMP) system-deps
+	$(PY) -m derive embedded
 
 test: $(STAMP) system-deps
 	$(PY) -m pytest -q

@@ -18,6 +18,7 @@ COMMANDS = {
     "show": ("derive.show", "print the derived dynamics, gains and laws"),
     "check": ("derive.check", "check the paper's claims as proof obligations"),
     "generate": ("derive.generate", "write the C and Python controllers of an arm"),
+    "embedded": ("derive.embedded", "cross-compile and run the C controller on emulated Cortex-M boards"),
     "simulate": ("derive.simulate_cmd", "simulate the arm in closed loop under the generated controllers"),
 }
 

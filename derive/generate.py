@@ -24,12 +24,12 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from .cli import report_warnings
     from .pipeline import derive
-    from .spec import load_arm, resolve_arm_path
+    from .spec import load_arm
 
     arm = load_arm(args.arm)
     d = derive(arm)
     report_warnings(d)
-    files = generate_files(d, resolve_arm_path(args.arm).read_bytes(), args.real, ParamsMode(args.params))
+    files = generate_files(d, None, args.real, ParamsMode(args.params))  # hash of the bytes load_arm read
     target = Path(args.out) / arm.name
     write_tree(target, files, keep=("sim",))  # derive simulate's results survive regeneration
     print(f"derive: wrote {len(files)} files to {target}", file=sys.stderr)

@@ -14,9 +14,10 @@ gravity, when given, acts along -y of the base frame with theta = 0 along +x.
 """
 from __future__ import annotations
 
+import hashlib
 import numbers
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -95,6 +96,7 @@ class Arm:
     controller: Controller
     source: str
     simulation: SimSettings = field(default_factory=SimSettings, compare=False)
+    source_sha256: str = ""  # of the bytes validated (load_arm), recorded in MANIFEST.json
 
     @property
     def n(self) -> int:
@@ -150,7 +152,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
         raise fail("valid TOML", "arrays or tables nested too deeply to read") from None
     except ValueError as exc:  # an integer beyond Python's digit limit
         raise fail("valid TOML with numbers a double can hold", str(exc).split(";")[0]) from None
-    return arm_from_dict(data, source)
+    return replace(arm_from_dict(data, source), source_sha256=hashlib.sha256(raw).hexdigest())
 
 
 # -- the schema ---------------------------------------------------------------------------

@@ -34,7 +34,10 @@ def write_tree(target: Path, files: dict[str, str], binary: dict[str, bytes] | N
     (relative POSIX paths); subfolders named in ``keep`` survive from the
     previous output (e.g. the simulation results beside generated code)."""
     target = Path(target)
-    _check_target(target)
+    try:
+        _check_target(target)
+    except OSError as exc:  # an ancestor we may not search, a name too long, ...
+        raise EmitError(f"output folder {target}: cannot inspect it ({exc.strerror or exc})") from None
     parent = target.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)

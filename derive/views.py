@@ -29,6 +29,15 @@ _PARAM_DOCS = {
 }
 
 
+def comment_text(text: str) -> str:
+    """``text`` safe inside a C block comment and a Python docstring alike:
+    printable ASCII kept, any other character and backslash or double quote
+    written as U+XXXX, comment delimiters broken apart. The spec already
+    rejects such text; this is the second line of defence at the edge."""
+    out = "".join(ch if (" " <= ch <= "~" and ch not in '\\"') else f"U+{ord(ch):04X}" for ch in text)
+    return out.replace("*/", "* /").replace("/*", "/ *")
+
+
 def param_doc(name: str) -> str:
     """Human description of a parameter symbol name such as ``Kt2``."""
     match = re.fullmatch(r"([A-Za-z]+?)(\d*)", name)
@@ -95,8 +104,8 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
     limits = [float(m.voltage_limit) if m.voltage_limit is not None else 0.0 for m in arm.motors]
     numbers = dict(values)
     return ArmView(
-        arm=arm.name, ARM=arm.name.upper(), description=arm.description,
-        source_name=arm.source.replace("\\", "/").rsplit("/", 1)[-1], n=d.n, real=real,
+        arm=arm.name, ARM=arm.name.upper(), description=comment_text(arm.description),
+        source_name=comment_text(arm.source.replace("\\", "/").rsplit("/", 1)[-1]), n=d.n, real=real,
         runtime=mode is ParamsMode.RUNTIME,
         params=tuple((name, c_literal(v, real), param_doc(name)) for name, v in values),
         py_params=tuple((name, repr(v), param_doc(name)) for name, v in values),

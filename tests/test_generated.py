@@ -130,3 +130,67 @@ def test_generate_cli_reports_bad_output_folder_with_exit_2(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "derive", "generate", "--out", str(tmp_path)],
                           capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "output folder" in proc.stderr
+
+
+def test_hostile_description_cannot_escape_generated_comments(tmp_path):
+    """Defence in depth: even a description the spec would reject is made inert."""
+    import dataclasses
+
+    d = derive.derive(derive.load_arm())
+    hostile = 'x */ int evil; /* """ \\N{BULLET} \x00'
+    d = dataclasses.replace(d, arm=dataclasses.replace(d.arm, description=hostile))
+    files = generate_files(d, b"")
+    header, module = files["c/glasgow_2link.h"], files["python/glasgow_2link.py"]
+    assert "int evil;" in header and header.count("*/") == header.count("/*")  # still inside the comment
+    compile(module, "glasgow_2link.py", "exec")  # the docstring still parses
+    assert "\x00" not in header + module
+
+
+def test_output_folder_under_an_unsearchable_ancestor_gets_a_clear_error(tmp_path, monkeypatch):
+    from pathlib import Path as P
+
+    def refuse(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(P, "lstat", refuse)
+    with pytest.raises(EmitError, match="cannot inspect it"):
+        write_tree(tmp_path / "out", {"MANIFEST.json": "{}\n"})
+
+
+def test_unwritable_output_folder_gets_a_clear_error(tmp_path, monkeypatch):
+    """A read-only parent (simulated: tests may run as root, who writes anyway)."""
+    import tempfile
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "mkdtemp", refuse)
+    with pytest.raises(EmitError, match=r"output folder .*: cannot write in .*Permission denied"):
+        write_tree(tmp_path / "out", {"MANIFEST.json": "{}\n"})
+    assert not (tmp_path / "out").exists()
+
+
+def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
+    """The real thing, for a user the permissions bind: run as nobody when we are root."""
+    import shutil
+    import tempfile
+
+    base = Path(tempfile.mkdtemp(prefix="derive-ro-", dir="/tmp"))  # pytest's tmp_path is 0700 (root's)
+    base.chmod(0o755)
+    ro = base / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    code = ("import sys; from derive.emit import write_tree; from derive.errors import EmitError\n"
+            "try:\n    write_tree(__import__('pathlib').Path(sys.argv[1]), {'MANIFEST.json': '{}'})\n"
+            "except EmitError as e:\n    print(e); sys.exit(2)\n")
+    cmd = [sys.executable, "-c", code, str(ro / "out")]
+    if os.geteuid() == 0:
+        assert shutil.which("setpriv"), "setpriv (util-linux) is needed to drop root"
+        cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd="/")
+    try:
+        assert proc.returncode == 2 and "cannot write" in proc.stdout, proc.stdout + proc.stderr
+        assert not (ro / "out").exists()
+    finally:
+        shutil.rmtree(base)

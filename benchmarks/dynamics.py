@@ -35,6 +35,7 @@ from sympy.physics import mechanics as me
 import derive
 from derive.dynamics import Dynamics, crba, derive_dynamics, lumped_bodies, rnea
 from derive.identities import count_ops_cse
+from derive.examples import planar_chain_dict
 from derive.spec import Arm, arm_from_dict
 from derive.symbols import JointSymbols, ParamSymbols
 
@@ -51,18 +52,8 @@ T = TypeVar("T")
 
 
 def chain_dict(n: int, gravity: float = 9.81) -> dict:
-    """A planar n-link chain with varied parameters, geared motors with rotor
-    inertia, a tip mass and a point mass (a carried motor) at each inner joint."""
-    links = [{"length": 0.3 + 0.05 * i, "mass": 0.4 + 0.1 * i, "com": 0.12 + 0.02 * i,
-              "inertia": 0.002 + 0.001 * i, "viscous_friction": 0.01 * i} for i in range(n)]
-    motors = [{"torque_constant": 0.05 + 0.01 * i, "voltage_constant": 0.04 + 0.01 * i,
-               "resistance": 2.0 + i, "gear_ratio": 1.0 + i, "rotor_inertia": 1e-5 * i} for i in range(n)]
-    point_masses = [{"link": n, "distance": 0.3 + 0.05 * (n - 1), "mass": 0.15}]
-    point_masses += [{"link": i, "distance": 0.3 + 0.05 * (i - 1), "mass": 0.2, "inertia": 1e-4}
-                     for i in range(1, n)]
-    return {"arm": {"name": f"chain{n}", "gravity": gravity}, "link": links, "motor": motors,
-            "point_mass": point_masses,
-            "controller": {"T1": 0.0, "T2": 0.5, "w": [1.0 + i for i in range(n)]}}
+    """The planar n-link test chain (derive.examples), with gravity by default."""
+    return planar_chain_dict(n, gravity)
 
 
 def chain(n: int, gravity: float = 9.81) -> Arm:

@@ -148,3 +148,20 @@ def test_simulate_cli_rejects_bad_options_with_exit_2(tmp_path, args, fragment):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_section_5_1_tachometer_filter_smooths_velocity_noise():
+    """Velocity noise reaches u through D(theta) e'; the first-order tachometer
+    filter of section 5.1 must cut the sample-to-sample jitter of u."""
+    arm = derive.load_arm()
+    jitter = {}
+    for hz in (0.0, 20.0):
+        a, d, backend, plant = _setup(arm, duration=2.0, velocity_noise=(0.05, 0.05), tacho_filter_hz=hz)
+        tr = run(d, backend, plant, a.simulation, "npid")
+        backend.close()
+        jitter[hz] = float(np.std(np.diff(tr.u[:, 0])))
+    a, d, backend, plant = _setup(arm, duration=2.0)
+    clean = float(np.std(np.diff(run(d, backend, plant, a.simulation, "npid").u[:, 0])))
+    backend.close()
+    assert jitter[0.0] > 10 * clean  # the noise really is in the loop
+    assert jitter[20.0] < 0.5 * jitter[0.0]

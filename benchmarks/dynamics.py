@@ -263,9 +263,9 @@ def run() -> Section:
     pipeline, _, _ = timed(lambda: derive.derive(default_arm))
     note = (
         f"Times: best of {REPEAT} runs, each with SymPy's cache cleared (fewer runs, shown as (kx), "
-        f"once they took {BUDGET:g} s). derive_dynamics also builds the Coriolis matrix (Christoffel "
-        "symbols) and the gravity vector; 'J, G alone' is its CRBA + RNEA part, the work Kane and "
-        "Lagrange do. ops: count_ops of J and G after CSE, arm values put in. Chains have g = 9.81, "
+        f"once they took {BUDGET:g} s). derive_dynamics also builds the gravity vector and the motor "
+        "terms (the Coriolis matrix is computed on first use); 'J, G alone' is its CRBA + RNEA part, "
+        "the work Kane and Lagrange do. ops: count_ops of J and G after CSE, arm values put in. Chains have g = 9.81, "
         f"the default arm g = {float(default_arm.gravity):g}. Kane's and Lagrange's J and G agree "
         "with ours at a sampled state (asserted).\n\n"
         f"Full pipeline `derive.derive(derive.load_arm())` (dynamics, predictive law, observer, "

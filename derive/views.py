@@ -32,7 +32,7 @@ _PARAM_DOCS = {
 def comment_text(text: str) -> str:
     """``text`` safe inside a C block comment and a Python docstring alike:
     printable ASCII kept, any other character and backslash or double quote
-    written as U+XXXX, comment delimiters broken apart. The spec already
+    written as its code point (U+hhhh), comment delimiters broken apart. The spec already
     rejects such text; this is the second line of defence at the edge."""
     out = "".join(ch if (" " <= ch <= "~" and ch not in '\\"') else f"U+{ord(ch):04X}" for ch in text)
     return out.replace("*/", "* /").replace("/*", "/ *")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
+STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wvla"]  # -Wvla: no variable-length arrays
 
 
 def compilers() -> list[str]:

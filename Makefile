@@ -17,6 +17,8 @@ $(STAMP): pyproject.toml
 generate: $(STAMP)
 	$(PY) -m derive generate --out generated
 	$(PY) -m derive simulate --out generated/glasgow_2link/sim --json generated/glasgow_2link/sim/metrics.json
+	$(PY) -m derive simulate --controllers npid,dobc,npid_unprotected --voltage-limits 2,3 --duration 15 \
+	    --out generated/glasgow_2link/sim/saturation
 
 system-deps:
 	bash scripts/install-system-deps.sh

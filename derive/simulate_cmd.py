@@ -23,6 +23,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None, help="folder for plots and metrics.md (default sim/<arm>)")
     parser.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
     parser.add_argument("--duration", type=float, default=None, help="override simulation.duration [s]")
+    parser.add_argument("--voltage-limits", default=None, metavar="V1,V2,...",
+                        help="override the motors' voltage limits [V] (0 = none), for saturation studies")
 
 
 def metrics_markdown(arm: str, results: dict, backend: str) -> str:
@@ -66,6 +68,25 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     return files, results
 
 
+def with_voltage_limits(arm, text: str):
+    """``arm`` with the motors' voltage limits replaced (``--voltage-limits``)."""
+    import math
+    from dataclasses import replace
+    from fractions import Fraction
+
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != arm.n or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise DeriveError(f"--voltage-limits: expected {arm.n} comma-separated finite numbers >= 0 "
+                          f"(volts, 0 = none), got {text!r}")
+    motors = tuple(replace(m, voltage_limit=Fraction(repr(v)) if v > 0 else None)
+                   for m, v in zip(arm.motors, values))
+    return replace(arm, motors=motors)
+
+
 def run(args) -> int:
     from .emit import write_tree
     from .spec import load_arm
@@ -78,6 +99,8 @@ def run(args) -> int:
     if args.duration is not None and not (0 < args.duration < 1e6):
         raise DeriveError(f"--duration: expected a number of seconds > 0, got {args.duration}")
     arm = load_arm(args.arm)
+    if args.voltage_limits is not None:
+        arm = with_voltage_limits(arm, args.voltage_limits)
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration)
     wall = time.perf_counter() - start

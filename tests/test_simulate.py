@@ -126,6 +126,13 @@ def test_anti_windup_recovers_from_saturation_without_the_unprotected_overshoot(
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
 
 
+def test_voltage_limits_option_replaces_the_motor_limits():
+    from derive.simulate_cmd import with_voltage_limits
+
+    arm = with_voltage_limits(derive.load_arm(), "2, 0")
+    assert arm.motors[0].voltage_limit == 2 and arm.motors[1].voltage_limit is None
+
+
 def test_simulate_cli_writes_plots_metrics_and_json(tmp_path):
     out, js = tmp_path / "sim", tmp_path / "m.json"
     proc = subprocess.run([sys.executable, "-m", "derive", "simulate", "--duration", "2", "--out", str(out),
@@ -142,7 +149,10 @@ def test_simulate_cli_writes_plots_metrics_and_json(tmp_path):
 
 
 @pytest.mark.parametrize("args,fragment", [(["--controllers", "pid"], "--controllers"),
-                                           (["--duration", "-1"], "--duration")])
+                                           (["--duration", "-1"], "--duration"),
+                                           (["--voltage-limits", "2"], "--voltage-limits"),
+                                           (["--voltage-limits", "2,nan"], "--voltage-limits"),
+                                           (["--voltage-limits", "2,-1"], "--voltage-limits")])
 def test_simulate_cli_rejects_bad_options_with_exit_2(tmp_path, args, fragment):
     proc = subprocess.run([sys.executable, "-m", "derive", "simulate", "--out", str(tmp_path / "x"), *args],
                           capture_output=True, text=True, timeout=120)

@@ -40,7 +40,8 @@ def plant():
     J = sp.lambdify(args, d.J, "numpy")
     G = sp.lambdify(args, d.G, "numpy")
     B = np.array(d.B.tolist(), dtype=float)
-    return J, G, B
+    W = np.array(d.W.tolist(), dtype=float)
+    return J, G, B, W
 
 
 def _reference(t: float):
@@ -52,7 +53,7 @@ def _reference(t: float):
 
 def _closed_loop(m, plant, dt: float, steps: int, zero_estimate: bool = False):
     """Run the DOBC in closed loop; return its u and the NPID u along the same measurements."""
-    J, G, B = plant
+    J, G, B, W = plant
     dist = np.array([0.4, -0.3])  # constant input disturbance [V]
     x = np.array([0.1, -0.1, 0.0, 0.0])
 
@@ -70,7 +71,7 @@ def _closed_loop(m, plant, dt: float, steps: int, zero_estimate: bool = False):
         if k == 0:
             assert m.dobc_init(ds, inp) == 0 and m.npid_init(ns, inp) == 0
             if zero_estimate:
-                ds.z = [-(v) for v in (np.array([[1, 0], [1, 2]]) @ x[2:])]  # dhat(0) = 0
+                ds.z = list(-(W @ x[2:]))  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
         code, u = m.dobc_step(ds, inp, dt)
         code2, u2 = m.npid_step(ns, inp, dt)
         assert code == 0 and code2 == 0

@@ -98,6 +98,10 @@ def run(args) -> int:
                           f"got {args.controllers!r}")
     if args.duration is not None and not (0 < args.duration < 1e6):
         raise DeriveError(f"--duration: expected a number of seconds > 0, got {args.duration}")
+    json_path = Path(args.json) if args.json else None
+    if json_path is not None and not json_path.parent.is_dir():  # fail before minutes of simulation
+        raise DeriveError(f"--json {json_path}: expected a file in an existing folder, "
+                          f"got a missing folder {json_path.parent}")
     arm = load_arm(args.arm)
     if args.voltage_limits is not None:
         arm = with_voltage_limits(arm, args.voltage_limits)
@@ -109,8 +113,11 @@ def run(args) -> int:
                                                   "files": sorted(files)}, indent=2) + "\n",
                      **{k: v.decode() for k, v in files.items() if k.endswith(".md")}},
                binary={k: v for k, v in files.items() if k.endswith(".png")})
-    if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    if json_path is not None:
+        try:
+            json_path.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+        except OSError as exc:
+            raise DeriveError(f"--json {json_path}: cannot write ({exc.strerror or exc})") from None
     simulated = (args.duration or arm.simulation.duration) * len(names)
     print(f"derive: simulated {simulated:g} s in {wall:.1f} s ({simulated / wall:.1f} simulated s per "
           f"wall s); wrote {out}", file=sys.stderr)

@@ -152,7 +152,8 @@ def test_simulate_cli_writes_plots_metrics_and_json(tmp_path):
                                            (["--duration", "-1"], "--duration"),
                                            (["--voltage-limits", "2"], "--voltage-limits"),
                                            (["--voltage-limits", "2,nan"], "--voltage-limits"),
-                                           (["--voltage-limits", "2,-1"], "--voltage-limits")])
+                                           (["--voltage-limits", "2,-1"], "--voltage-limits"),
+                                           (["--json", "/nonexistent-derive/m.json"], "--json")])
 def test_simulate_cli_rejects_bad_options_with_exit_2(tmp_path, args, fragment):
     proc = subprocess.run([sys.executable, "-m", "derive", "simulate", "--out", str(tmp_path / "x"), *args],
                           capture_output=True, text=True, timeout=120)

@@ -180,14 +180,23 @@ def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
     ro = base / "ro"
     ro.mkdir()
     ro.chmod(0o555)
-    code = ("import sys; from derive.emit import write_tree; from derive.errors import EmitError\n"
+    # the unprivileged user imports only the writer, copied beside the folder: the clone
+    # and its venv may sit under a folder (such as /root) that user cannot enter
+    pkg = base / "pkg" / "dpkg"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    for name in ("emit.py", "errors.py"):
+        shutil.copy(ROOT / "derive" / name, pkg / name)
+    for folder in (base / "pkg", pkg):
+        folder.chmod(0o755)
+    code = ("import sys; from dpkg.emit import write_tree; from dpkg.errors import EmitError\n"
             "try:\n    write_tree(__import__('pathlib').Path(sys.argv[1]), {'MANIFEST.json': '{}'})\n"
             "except EmitError as e:\n    print(e); sys.exit(2)\n")
-    cmd = [sys.executable, "-c", code, str(ro / "out")]
+    cmd = [os.path.realpath(sys.executable), "-c", code, str(ro / "out")]
     if os.geteuid() == 0:
         assert shutil.which("setpriv"), "setpriv (util-linux) is needed to drop root"
         cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *cmd]
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(base / "pkg")}
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd="/")
     try:
         assert proc.returncode == 2 and "cannot write" in proc.stdout, proc.stdout + proc.stderr

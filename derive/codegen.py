@@ -14,7 +14,7 @@ from .render import render
 from .views import arm_view, selftest_view
 
 REALS = ("double", "float")
-PINNED = ("sympy", "casadi", "jinja2")  # exact versions in pyproject.toml: output depends on them
+PINNED = ("sympy", "casadi", "numpy", "jinja2")  # exact versions in pyproject.toml: output depends on them
 
 
 def c_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:

@@ -96,9 +96,12 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     """The kernels of an arm's controller (shapes for n joints, row-major).
 
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
-    npid(x, int_e) -> u, e (eq. 34); dobc(x, z) -> u (eq. 27 with eq. 22);
-    observer(theta, theta', z, u) -> z' (eq. 21); dobc_init(x) -> z(0) from the
-    derived dhat(0); x = (theta, theta', yd, yd', yd''), p = parameters (runtime).
+    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
+    observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
+    from the derived dhat(0); x = (theta, theta', yd, yd', yd''), p = parameters
+    (runtime). The discretisation is part of the maths: forward Euler,
+    int_next = int_e + dt e and z_next = z + dt z'; the glue only chooses
+    (an integrator held at a voltage limit keeps int_e).
     """
     s = d.dynamics.sym
     n = d.n
@@ -118,6 +121,8 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     x = (theta, dtheta, Port("yd", s.yd, "reference y_d"), Port("dyd", s.dyd, "reference y_d'"),
          Port("ddyd", s.ddyd, "reference y_d''"))
     z = Port("z", s.z, "observer state (eq. 21)")
+    dt_sym = sp.Symbol("dt", positive=True)
+    dt = Port("dt", (dt_sym,), "sample time [s]")
     npid = d.npid
     dhat0 = value(npid.dhat0).xreplace({**dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
     W, B = d.observer.W, d.dynamics.B
@@ -131,15 +136,16 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
             "PID gains of the nonlinear PID predictive controller (eq. 35-37)"),
         KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star)), "u*, eq. 15"),),
                    "Nonlinear predictive control law u* (eq. 15)"),
-        KernelSpec("npid", (*x, Port("int_e", s.int_e, "integral of e (eq. 34)"), *params), (
+        KernelSpec("npid", (*x, Port("int_e", s.int_e, "integral of e (eq. 34)"), dt, *params), (
             Port("u", _flat(law(npid.u_npid)), "u = P e + D e' + I int e + N, eq. 34"),
-            Port("e", _flat(e), "tracking error e = yd - C theta, eq. 20")),
-            "Nonlinear PID predictive control law (eq. 34-38)"),
+            Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
+            "Nonlinear PID predictive control law (eq. 34-38) and its integrator step"),
         KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc)), "u* - dhat, eq. 27"),),
                    "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
-        KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), *params), (
-            Port("zdot", _flat(value(W) * sp.Matrix(y)), "z' = W J^-1 (G - B u - p - z), eq. 21"),),
-            "Disturbance observer dynamics (eq. 21, 24), J y = G - B u - W theta' - z solved numerically",
+        KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
+                 "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
+            "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically",
             (solve,)),
         KernelSpec("dobc_init", (*x[:4], *params), (
             Port("z0", _flat(value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)),

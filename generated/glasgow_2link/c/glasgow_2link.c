@@ -61,12 +61,12 @@ int glasgow_2link_npid_init(glasgow_2link_npid_state *s, const glasgow_2link_inp
 
 int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_input *in, real dt, real u[N])
 {
-    real v[N], e[N], next[N];
+    real v[N], step[N], next[N];
     int i;
     if (!(isfinite(dt) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->int_e, N)) return GLASGOW_2LINK_ENONFINITE;
-    glasgow_2link_kernel_npid(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->int_e, v, e);
-    for (i = 0; i < N; ++i) next[i] = clip(&v[i], u_max[i]) ? s->int_e[i] : s->int_e[i] + dt * e[i];
+    glasgow_2link_kernel_npid(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->int_e, &dt, v, step);
+    for (i = 0; i < N; ++i) next[i] = clip(&v[i], u_max[i]) ? s->int_e[i] : step[i];
     if (!finite_all(v, N) || !finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) { s->int_e[i] = next[i]; u[i] = v[i]; }
     return GLASGOW_2LINK_OK;
@@ -85,14 +85,13 @@ int glasgow_2link_dobc_init(glasgow_2link_dobc_state *s, const glasgow_2link_inp
 
 int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, real dt, real u[N])
 {
-    real v[N], zdot[N], next[N];
+    real v[N], next[N];
     int i;
     if (!(isfinite(dt) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v);
     for (i = 0; i < N; ++i) (void)clip(&v[i], u_max[i]);
-    glasgow_2link_kernel_observer(in->theta, in->dtheta, s->z, v, zdot);
-    for (i = 0; i < N; ++i) next[i] = s->z[i] + dt * zdot[i];
+    glasgow_2link_kernel_observer(in->theta, in->dtheta, s->z, v, &dt, next);
     if (!finite_all(v, N) || !finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) { s->z[i] = next[i]; u[i] = v[i]; }
     return GLASGOW_2LINK_OK;

@@ -156,8 +156,8 @@ void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2
     u[1] = a0;
 }
 
-/* Nonlinear PID predictive control law (eq. 34-38); 83 operations. */
-void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], glasgow_2link_real u[2], glasgow_2link_real e[2])
+/* Nonlinear PID predictive control law (eq. 34-38) and its integrator step; 87 operations. */
+void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2])
 {
     glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17;
     a0 = -14.492608695652175;
@@ -265,8 +265,8 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
     a4 = a4 * a7;
     a0 = a0 + a4;
     a4 = 1090.909090909091;
-    a7 = int_e[1];
-    a4 = a4 * a7;
+    a1 = int_e[1];
+    a4 = a4 * a1;
     a0 = a0 + a4;
     a4 = 3.615469696969697;
     a4 = a4 * a15;
@@ -285,10 +285,15 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
     a2 = a2 * a11;
     a0 = a0 + a2;
     u[1] = a0;
+    a0 = dt[0];
     a6 = a6 - a3;
-    e[0] = a6;
+    a6 = a0 * a6;
+    a7 = a7 + a6;
+    int_next[0] = a7;
     a13 = a13 - a9;
-    e[1] = a13;
+    a0 = a0 * a13;
+    a1 = a1 + a0;
+    int_next[1] = a1;
 }
 
 /* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27); 67 operations. */
@@ -402,78 +407,83 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     u[1] = a0;
 }
 
-/* Disturbance observer dynamics (eq. 21, 24), J y = G - B u - W theta' - z solved numerically; 47 operations. */
-void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], glasgow_2link_real zdot[2])
+/* Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically; 51 operations. */
+void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13;
-    a0 = 0.03181613333333334;
-    a1 = 0.17929666666666666;
-    a2 = 0.0810084;
-    a3 = theta[1];
-    a4 = cos(a3);
-    a2 = a2 * a4;
-    a1 = a1 + a2;
-    a2 = a0 * a1;
-    a5 = 0.0405042;
-    a6 = a5 * a4;
-    a6 = a0 + a6;
-    a7 = a6 * a6;
-    a2 = a2 - a7;
-    a0 = a0 / a2;
-    a7 = -0.9803823529411765;
-    a8 = dtheta[0];
-    a7 = a7 * a8;
-    a9 = z[0];
-    a7 = a7 - a9;
-    a9 = -0.06764705882352941;
-    a10 = u[0];
-    a9 = a9 * a10;
-    a7 = a7 + a9;
-    a9 = 0.38;
-    a10 = -0.10659;
-    a11 = dtheta[1];
-    a12 = a8 + a11;
-    a12 = a12 * a12;
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14;
+    a0 = z[0];
+    a1 = 0.03181613333333334;
+    a2 = 0.17929666666666666;
+    a3 = 0.0810084;
+    a4 = theta[1];
+    a5 = cos(a4);
+    a3 = a3 * a5;
+    a2 = a2 + a3;
+    a3 = a1 * a2;
+    a6 = 0.0405042;
+    a7 = a6 * a5;
+    a7 = a1 + a7;
+    a8 = a7 * a7;
+    a3 = a3 - a8;
+    a1 = a1 / a3;
+    a8 = -0.9803823529411765;
+    a9 = dtheta[0];
+    a8 = a8 * a9;
+    a8 = a8 - a0;
+    a10 = -0.06764705882352941;
+    a11 = u[0];
+    a10 = a10 * a11;
+    a8 = a8 + a10;
+    a10 = 0.38;
+    a11 = -0.10659;
+    a12 = dtheta[1];
+    a13 = a9 + a12;
+    a13 = a13 * a13;
+    a11 = a11 * a13;
+    a13 = -0.17518;
+    a14 = a9 * a9;
+    a13 = a13 * a14;
+    a13 = a13 * a5;
+    a11 = a11 + a13;
+    a10 = a10 * a11;
+    a4 = sin(a4);
+    a10 = a10 * a4;
+    a8 = a8 + a10;
+    a6 = a6 * a14;
+    a6 = a6 * a4;
+    a8 = a8 + a6;
+    a10 = 0.0665684;
+    a10 = a10 * a14;
+    a10 = a10 * a5;
+    a10 = a10 * a4;
+    a8 = a8 + a10;
+    a1 = a1 * a8;
+    a7 = a7 / a3;
+    a10 = -1.9995864;
     a10 = a10 * a12;
-    a12 = -0.17518;
-    a13 = a8 * a8;
-    a12 = a12 * a13;
-    a12 = a12 * a4;
-    a10 = a10 + a12;
-    a9 = a9 * a10;
-    a3 = sin(a3);
-    a9 = a9 * a3;
-    a7 = a7 + a9;
-    a5 = a5 * a13;
-    a5 = a5 * a3;
-    a7 = a7 + a5;
-    a9 = 0.0665684;
-    a9 = a9 * a13;
+    a12 = z[1];
+    a9 = a9 + a12;
+    a10 = a10 - a9;
+    a9 = -0.0088;
+    a4 = u[1];
     a9 = a9 * a4;
-    a9 = a9 * a3;
-    a7 = a7 + a9;
-    a0 = a0 * a7;
-    a6 = a6 / a2;
-    a9 = -1.9995864;
-    a9 = a9 * a11;
-    a11 = z[1];
-    a8 = a8 + a11;
-    a9 = a9 - a8;
-    a8 = -0.0088;
-    a11 = u[1];
-    a8 = a8 * a11;
-    a9 = a9 + a8;
-    a9 = a9 + a5;
-    a5 = a6 * a9;
-    a0 = a0 - a5;
-    zdot[0] = a0;
-    a1 = a1 / a2;
-    a1 = a1 * a9;
-    a6 = a6 * a7;
+    a10 = a10 + a9;
+    a10 = a10 + a6;
+    a6 = a7 * a10;
     a1 = a1 - a6;
-    a1 = a1 + a1;
+    a6 = dt[0];
+    a1 = a1 * a6;
     a0 = a0 + a1;
-    zdot[1] = a0;
+    z_next[0] = a0;
+    a12 = a12 + a1;
+    a2 = a2 / a3;
+    a2 = a2 * a10;
+    a7 = a7 * a8;
+    a2 = a2 - a7;
+    a2 = a2 + a2;
+    a2 = a2 * a6;
+    a12 = a12 + a2;
+    z_next[1] = a12;
 }
 
 /* Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 12 operations. */

@@ -9,12 +9,12 @@
 void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real P[4], glasgow_2link_real D[4], glasgow_2link_real I[4]);
 /* Nonlinear predictive control law u* (eq. 15) */
 void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], glasgow_2link_real u[2]);
-/* Nonlinear PID predictive control law (eq. 34-38) */
-void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], glasgow_2link_real u[2], glasgow_2link_real e[2]);
+/* Nonlinear PID predictive control law (eq. 34-38) and its integrator step */
+void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2]);
 /* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27) */
 void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2]);
-/* Disturbance observer dynamics (eq. 21, 24), J y = G - B u - W theta' - z solved numerically */
-void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], glasgow_2link_real zdot[2]);
+/* Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically */
+void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);
 /* Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31) */
 void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], glasgow_2link_real z0[2]);
 

@@ -257,7 +257,7 @@ def law_timings(d: Derivation) -> tuple[dict[str, float], dict[str, list[float]]
     spec = next(k for k in kernel_specs(d, ParamsMode.BAKED) if k.name == "npid")
     f = to_function(spec)
     x = list(X0)
-    args = [x[0:2], x[2:4], x[4:6], x[6:8], x[8:10], x[10:12]]
+    args = [x[0:2], x[2:4], x[4:6], x[6:8], x[8:10], x[10:12], [1e-4]]  # ..., int_e, dt
     u_casadi = [float(v) for v in f(*args)[0].full().ravel()]
     s = d.dynamics.sym
     e = sp.Matrix(s.yd) - d.C * sp.Matrix(s.theta)

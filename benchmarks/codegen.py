@@ -260,11 +260,8 @@ def law_timings(d: Derivation) -> tuple[dict[str, float], dict[str, list[float]]
     args = [x[0:2], x[2:4], x[4:6], x[6:8], x[8:10], x[10:12], [1e-4]]  # ..., int_e, dt
     u_casadi = [float(v) for v in f(*args)[0].full().ravel()]
     s = d.dynamics.sym
-    e = sp.Matrix(s.yd) - d.C * sp.Matrix(s.theta)
-    de = sp.Matrix(s.dyd) - d.C * sp.Matrix(s.dtheta)
-    errors = {**dict(zip(s.e, e)), **dict(zip(s.de, de))}
     symbols = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd + s.int_e)
-    law = sp.lambdify(symbols, list(d.u_npid.xreplace(errors)), modules="math", cse=True)
+    law = sp.lambdify(symbols, list(d.measured(d.u_npid)), modules="math", cse=True)
     u_lambdify = [float(v) for v in law(*x)]
     return ({"casadi": _best_us(lambda: f(*args), 500), "lambdify": _best_us(lambda: law(*x))},
             {"casadi": u_casadi, "lambdify": u_lambdify})

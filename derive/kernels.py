@@ -108,13 +108,10 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     runtime = mode is ParamsMode.RUNTIME
     value = (lambda m: m) if runtime else d.numeric
     params = (Port("p", tuple(sym for sym, _ in d.values), "arm parameters and gains"),) if runtime else ()
-    C = d.C
-    e = sp.Matrix(s.yd) - C * sp.Matrix(s.theta)
-    de = sp.Matrix(s.dyd) - C * sp.Matrix(s.dtheta)
-    errors = {**dict(zip(s.e, e)), **dict(zip(s.de, de))}
+    e, _ = d.tracking_error
 
     def law(m: sp.Matrix) -> sp.Matrix:
-        return value(m).xreplace(errors)
+        return d.measured(value(m))
 
     theta = Port("theta", s.theta, "joint angles [rad]")
     dtheta = Port("dtheta", s.dtheta, "joint velocities [rad/s]")
@@ -124,7 +121,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     dt_sym = sp.Symbol("dt", positive=True)
     dt = Port("dt", (dt_sym,), "sample time [s]")
     npid = d.npid
-    dhat0 = value(npid.dhat0).xreplace({**dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
+    dhat0 = law(npid.dhat0)
     W, B = d.observer.W, d.dynamics.B
     y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
     solve = LinearSolve(y, value(d.dynamics.J), value(d.observer.J_solve_rhs))

@@ -75,6 +75,21 @@ class Derivation:
         """``expr`` (in parameter and gain symbols) with the arm's values put in."""
         return expr.xreplace(dict(self.values))
 
+    @property
+    def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each)."""
+        s = self.dynamics.sym
+        return (sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta),
+                sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta))
+
+    def measured(self, expr):
+        """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
+        at the first sample e(0) and e'(0) are the current e and e'."""
+        s = self.dynamics.sym
+        e, de = self.tracking_error
+        return expr.xreplace({**dict(zip(s.e, e)), **dict(zip(s.de, de)),
+                              **dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
+
 
 def derive(arm: Arm) -> Derivation:
     """Derive the dynamics, predictive law, observer and PID form of ``arm``."""

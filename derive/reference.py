@@ -26,13 +26,11 @@ class Reference:
     def __init__(self, d: Derivation, u_max: Sequence[float] | None = None):
         s = d.dynamics.sym
         self.n = n = d.n
-        e = sp.Matrix(s.yd) - d.C * sp.Matrix(s.theta)
-        de = sp.Matrix(s.dyd) - d.C * sp.Matrix(s.dtheta)
-        errors = {**dict(zip(s.e, e)), **dict(zip(s.de, de))}
+        e, _ = d.tracking_error
         x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
 
         def fn(args, m):
-            return sp.lambdify(args, m.xreplace(errors), modules="mpmath")
+            return sp.lambdify(args, d.measured(m), modules="mpmath")
 
         self._gains = fn(list(s.theta), sp.Matrix.vstack(d.P.reshape(n * n, 1), d.D.reshape(n * n, 1),
                                                          d.I.reshape(n * n, 1)))
@@ -43,8 +41,7 @@ class Reference:
         self._J = fn(list(s.theta), d.J)
         self._rhs = fn(list(s.theta + s.dtheta + s.z + s.u), d.numeric(d.observer.J_solve_rhs))
         self._W = mpmath.matrix(d.W.tolist())
-        dhat0 = d.dhat0.xreplace({**dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
-        self._z0 = fn(x[: 4 * n], d.B * dhat0 - d.W * sp.Matrix(s.dtheta))
+        self._z0 = fn(x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
         limits = u_max if u_max is not None else [
             float(m.voltage_limit) if m.voltage_limit is not None else 0.0 for m in d.arm.motors]
         self.u_max = [mpmath.mpf(v) for v in limits]

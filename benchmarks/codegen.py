@@ -9,7 +9,7 @@ For the default arm (glasgow_2link), with its parameters baked in:
   ``clock_gettime(CLOCK_MONOTONIC)``, best of 5 repeats;
 * the generated Python module's ``npid_step`` and ``dobc_step`` (timeit, best of 5);
 * the NPID law u (kernel ``npid``) as a CasADi Function called from Python
-  (:func:`derive.casadi_bridge.to_function`) and as ``sympy.lambdify``
+  (:func:`derive.codegen.casadi_bridge.to_function`) and as ``sympy.lambdify``
   (``modules="math"``, ``cse=True``) of the Derivation's u_npid with e, e'
   substituted (timeit, best of 5);
 * the same law with Pinocchio in C++ (``benchmarks/pinocchio_npid.cpp``: the
@@ -36,12 +36,12 @@ from pathlib import Path
 
 import sympy as sp
 
-from derive.codegen import generate_files
-from derive.emit import write_tree
-from derive.kernels import ParamsMode, kernel_specs
-from derive.pipeline import Derivation, derive
-from derive.spec import load_arm, resolve_arm_path
-from derive.views import arm_view
+from derive.codegen.files import generate_files
+from derive.codegen.emit import write_tree
+from derive.codegen.kernels import ParamsMode, kernel_specs
+from derive.control.pipeline import Derivation, derive
+from derive.model.spec import load_arm, resolve_arm_path
+from derive.codegen.views import arm_view
 
 from . import Goal, Section, table
 
@@ -252,7 +252,7 @@ def python_timings(d: Derivation, work: Path) -> tuple[dict[str, float], list[fl
 
 def law_timings(d: Derivation) -> tuple[dict[str, float], dict[str, list[float]]]:
     """us per call of the npid u through CasADi and lambdify, and their u at X0."""
-    from derive.casadi_bridge import to_function
+    from derive.codegen.casadi_bridge import to_function
 
     spec = next(k for k in kernel_specs(d, ParamsMode.BAKED) if k.name == "npid")
     f = to_function(spec)

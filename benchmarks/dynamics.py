@@ -4,7 +4,7 @@ For the default arm and planar chains of n = 2, 3, 4, 6 links: the time to
 derive J and G (eq. 12) and their operation count after CSE with the arm's
 values put in, for
 
-* ours: :func:`derive.dynamics.derive_dynamics` (CRBA for J, RNEA for G);
+* ours: :func:`derive.dynamics.planar.derive_dynamics` (CRBA for J, RNEA for G);
 * Kane: :class:`sympy.physics.mechanics.KanesMethod`, generalized speeds
   u_i = theta_i';
 * Lagrange: :class:`sympy.physics.mechanics.LagrangesMethod`.
@@ -33,11 +33,11 @@ from sympy.core.function import AppliedUndef
 from sympy.physics import mechanics as me
 
 import derive
-from derive.dynamics import Dynamics, crba, derive_dynamics, lumped_bodies, rnea
-from derive.identities import count_ops_cse
-from derive.examples import planar_chain_dict
-from derive.spec import Arm, arm_from_dict
-from derive.symbols import JointSymbols, ParamSymbols
+from derive.dynamics.planar import Dynamics, crba, derive_dynamics, lumped_bodies, rnea
+from derive.dynamics.identities import count_ops_cse
+from derive.model.examples import planar_chain_dict
+from derive.model.spec import Arm, arm_from_dict
+from derive.model.symbols import JointSymbols, ParamSymbols
 
 from . import Goal, Section, best_of, seconds, table
 
@@ -52,7 +52,7 @@ T = TypeVar("T")
 
 
 def chain_dict(n: int, gravity: float = 9.81) -> dict:
-    """The planar n-link test chain (derive.examples), with gravity by default."""
+    """The planar n-link test chain (derive.model.examples), with gravity by default."""
     return planar_chain_dict(n, gravity)
 
 
@@ -122,7 +122,7 @@ class Form:
 
     @property
     def ops(self) -> int:
-        """Operations of J and G after CSE (derive.identities.count_ops_cse)."""
+        """Operations of J and G after CSE (derive.dynamics.identities.count_ops_cse)."""
         return count_ops_cse(list(self.J) + list(self.G))
 
 

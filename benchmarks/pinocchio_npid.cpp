@@ -7,7 +7,7 @@
 // Two variants: "crba" (J by crba, h by nonLinearEffects, J a + h by hand) and
 // "rnea" (rnea(q, v, a) = J a + h in one pass). The model is built in code
 // (no URDF parser): planar chain, revolute Z joints, values of
-// derive/arms/glasgow_2link.toml, gravity zero (horizontal arm).
+// derive/model/arms/glasgow_2link.toml, gravity zero (horizontal arm).
 //
 // Usage: pinocchio_npid ITERATIONS REPEATS th1 th2 dth1 dth2 yd1 yd2 dyd1 dyd2 ddyd1 ddyd2 ie1 ie2
 // Prints "u <u1> <u2>" (both variants at the given state, %.17g) and

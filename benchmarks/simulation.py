@@ -15,9 +15,9 @@ def run() -> Section:
     import numpy as np
 
     import derive
-    from derive.backends import Backend
-    from derive.simulate import CONTROLLERS, Plant
-    from derive.simulate import run as simulate
+    from derive.sim.backends import Backend
+    from derive.sim.simulate import CONTROLLERS, Plant
+    from derive.sim.simulate import run as simulate
 
     arm = derive.load_arm()
     d = derive.derive(arm)

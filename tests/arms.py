@@ -1,5 +1,5 @@
 """Arm descriptions built in code for the tests: planar chains of any length."""
 from __future__ import annotations
 
-from derive.examples import planar_chain as chain  # noqa: F401
-from derive.examples import planar_chain_dict as chain_dict  # noqa: F401
+from derive.model.examples import planar_chain as chain  # noqa: F401
+from derive.model.examples import planar_chain_dict as chain_dict  # noqa: F401

@@ -6,7 +6,7 @@ import functools
 import pytest
 
 import derive
-from derive.spec import packaged_arms
+from derive.model.spec import packaged_arms
 
 
 @functools.lru_cache(maxsize=None)

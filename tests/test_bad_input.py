@@ -22,8 +22,8 @@ import pytest
 
 import derive
 from derive.errors import DeriveError, SpecError
-from derive.names import name_problem
-from derive.spec import ARMS_DIR, arm_from_dict
+from derive.model.names import name_problem
+from derive.model.spec import ARMS_DIR, arm_from_dict
 
 from .arms import chain_dict
 
@@ -397,7 +397,7 @@ def test_cli_reports_bad_arm_in_one_message_exit_2(case: Case, tmp_path: Path):
 
 def test_every_generated_suffix_is_known_to_names():
     """The names the generated code makes of the arm name are the ones names.py guards."""
-    from derive.names import GENERATED_SUFFIXES
+    from derive.model.names import GENERATED_SUFFIXES
 
     folder = ROOT / "generated" / "glasgow_2link"
     text = "\n".join(p.read_text(encoding="utf-8") + "\n" + p.name for p in folder.rglob("*")

@@ -1,6 +1,6 @@
 """Generated C and Python against the SymPy derivation (eq. 15, 21-27, 34-38).
 
-Every comparison is with derive.reference (40-digit mpmath evaluation of the
+Every comparison is with derive.codegen.reference (40-digit mpmath evaluation of the
 SymPy matrices), never between two outputs of the same printer alone.
 """
 from __future__ import annotations
@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 import derive
-from derive import testvectors as tv
-from derive.codegen import generate_files
-from derive.emit import write_tree
-from derive.kernels import ParamsMode
-from derive.reference import Reference
-from derive.spec import resolve_arm_path
+from derive.codegen import testvectors as tv
+from derive.codegen.files import generate_files
+from derive.codegen.emit import write_tree
+from derive.codegen.kernels import ParamsMode
+from derive.codegen.reference import Reference
+from derive.model.spec import resolve_arm_path
 
 from .cbuild import STRICT, CLib, compile_c, compilers, library_sources
 
@@ -136,7 +136,7 @@ def test_eq34_python_module_matches_sympy_at_200_states(tmp_path, paper_ref, sta
 
 def test_float_c_within_stated_bound(tmp_path, paper_ref, states):
     """Float results within 16 K 2^-24 (K = operations of the largest kernel used)."""
-    from derive.views import arm_view
+    from derive.codegen.views import arm_view
 
     v = arm_view(_derivation(), "float", ParamsMode.BAKED)
     bound = tv.float_bound(sum(k.operations for k in v.kernels if k.name in ("dobc", "observer")))

@@ -7,8 +7,8 @@ import sys
 import pytest
 import sympy as sp
 
-from derive.mpc import T1, T2, gains, tbar
-from derive.spec import packaged_arms
+from derive.control.mpc import T1, T2, gains, tbar
+from derive.model.spec import packaged_arms
 
 
 def test_eq18_tbar_entries():

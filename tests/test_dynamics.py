@@ -7,8 +7,8 @@ import pytest
 import sympy as sp
 
 import derive
-from derive.dynamics import a6_form, derive_dynamics, lagrange_reference
-from derive.identities import first_nonzero, matrix_is_zero
+from derive.dynamics.planar import a6_form, derive_dynamics, lagrange_reference
+from derive.dynamics.identities import first_nonzero, matrix_is_zero
 
 from .arms import chain
 

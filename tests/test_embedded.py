@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from derive import embedded
+from derive.embedded import qemu as embedded
 
 ROOT = Path(__file__).resolve().parent.parent
 ROW = re.compile(r"^\| (Cortex-M\w+) \((mps2-an38[56])\) \| (double|float) \| (\d+) passed, (\d+) failed \| (.*)$",

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 
 import derive
-from derive import codegen, render
-from derive.codegen import generate_files
-from derive.emit import write_tree
+from derive.codegen import files as codegen, render
+from derive.codegen.files import generate_files
+from derive.codegen.emit import write_tree
 from derive.errors import EmitError
-from derive.spec import resolve_arm_path
+from derive.model.spec import resolve_arm_path
 
 ROOT = Path(__file__).resolve().parent.parent
 FIX = "make generate   (or: .venv/bin/derive generate --out generated)"
@@ -182,14 +182,15 @@ def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
     ro.chmod(0o555)
     # the unprivileged user imports only the writer, copied beside the folder: the clone
     # and its venv may sit under a folder (such as /root) that user cannot enter
-    pkg = base / "pkg" / "dpkg"
-    pkg.mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    for name in ("emit.py", "errors.py"):
+    pkg = base / "pkg" / "derive"
+    (pkg / "codegen").mkdir(parents=True)
+    for init in (pkg / "__init__.py", pkg / "codegen" / "__init__.py"):
+        init.write_text("")
+    for name in ("codegen/emit.py", "errors.py"):
         shutil.copy(ROOT / "derive" / name, pkg / name)
-    for folder in (base / "pkg", pkg):
+    for folder in (base / "pkg", pkg, pkg / "codegen"):
         folder.chmod(0o755)
-    code = ("import sys; from dpkg.emit import write_tree; from dpkg.errors import EmitError\n"
+    code = ("import sys; from derive.codegen.emit import write_tree; from derive.errors import EmitError\n"
             "try:\n    write_tree(__import__('pathlib').Path(sys.argv[1]), {'MANIFEST.json': '{}'})\n"
             "except EmitError as e:\n    print(e); sys.exit(2)\n")
     cmd = [os.path.realpath(sys.executable), "-c", code, str(ro / "out")]

@@ -17,11 +17,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import derive
-from derive.codegen import generate_files, python_files
-from derive.emit import write_tree
-from derive.kernels import ParamsMode
-from derive.reference import Reference
-from derive.spec import arm_from_dict
+from derive.codegen.files import generate_files, python_files
+from derive.codegen.emit import write_tree
+from derive.codegen.kernels import ParamsMode
+from derive.codegen.reference import Reference
+from derive.model.spec import arm_from_dict
 
 from .cbuild import STRICT, compile_c, library_sources
 

@@ -6,10 +6,10 @@ import pytest
 import sympy as sp
 
 import derive
-from derive.casadi_bridge import to_function
+from derive.codegen.casadi_bridge import to_function
 from derive.errors import CoverageError, DerivationError
-from derive.kernels import KernelSpec, ParamsMode, Port, kernel_specs
-from derive.printing import c_literal, print_function
+from derive.codegen.kernels import KernelSpec, ParamsMode, Port, kernel_specs
+from derive.codegen.printing import c_literal, print_function
 
 x, y, z = sp.symbols("x y z", real=True)
 

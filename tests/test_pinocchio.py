@@ -23,8 +23,8 @@ import sympy as sp
 
 pin = pytest.importorskip("pinocchio")
 
-from derive.dynamics import Dynamics, derive_dynamics  # noqa: E402
-from derive.spec import Arm, load_arm, packaged_arms  # noqa: E402
+from derive.dynamics.planar import Dynamics, derive_dynamics  # noqa: E402
+from derive.model.spec import Arm, load_arm, packaged_arms  # noqa: E402
 
 from .arms import chain  # noqa: E402
 

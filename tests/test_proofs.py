@@ -18,11 +18,12 @@ from pathlib import Path
 import pytest
 import sympy as sp
 
-from derive import check, check_render, paper as pp, proofs_arm, proofs_project
+from derive.cli import check
+from derive.proofs import arm as proofs_arm, paper as pp, project as proofs_project, report as check_render
 from derive.errors import EmitError
-from derive.exact import Field, Undecidable
-from derive.identities import is_zero
-from derive.proofs import Kind, Obligation, Outcome, Result, Status, equal, exit_code, positive, run
+from derive.proofs.exact import Field, Undecidable
+from derive.dynamics.identities import is_zero
+from derive.proofs.core import Kind, Obligation, Outcome, Result, Status, equal, exit_code, positive, run
 
 from .conftest import derivation
 

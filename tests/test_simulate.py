@@ -15,8 +15,8 @@ import pytest
 import sympy as sp
 
 import derive
-from derive.backends import Backend
-from derive.simulate import Plant, metrics, run
+from derive.sim.backends import Backend
+from derive.sim.simulate import Plant, metrics, run
 
 
 def _setup(arm, backend="python", **settings):
@@ -120,14 +120,14 @@ def test_anti_windup_recovers_from_saturation_without_the_unprotected_overshoot(
     for name in ("npid", "dobc"):
         assert np.all(runs[name].saturated.sum(axis=0) > 0), f"{name} never saturates: no test"
         assert np.all(over[name] < 0.3 * over["npid_unprotected"]), (name, over)
-    from derive.plots import link_figure
+    from derive.sim.plots import link_figure
 
     png = link_figure(list(runs.values()), 0)
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
 
 
 def test_voltage_limits_option_replaces_the_motor_limits():
-    from derive.simulate_cmd import with_voltage_limits
+    from derive.cli.simulate import with_voltage_limits
 
     arm = with_voltage_limits(derive.load_arm(), "2, 0")
     assert arm.motors[0].voltage_limit == 2 and arm.motors[1].voltage_limit is None

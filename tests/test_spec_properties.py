@@ -22,8 +22,8 @@ from hypothesis.configuration import set_hypothesis_home_dir
 
 import derive
 from derive.errors import SpecError
-from derive.names import MAX_LENGTH, name_problem
-from derive.spec import arm_from_dict
+from derive.model.names import MAX_LENGTH, name_problem
+from derive.model.spec import arm_from_dict
 
 # No .hypothesis folder in the working directory: no example database, caches in the temp dir.
 set_hypothesis_home_dir(Path(tempfile.gettempdir()) / "derive-hypothesis")

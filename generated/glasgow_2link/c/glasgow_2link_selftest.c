@@ -89,7 +89,7 @@ static void load(const real *x, glasgow_2link_input *in)
     }
 }
 
-/* The host's derive.testvectors.sequence_input, exactly. */
+/* The host's derive.codegen.testvectors.sequence_input, exactly. */
 static void sequence_input(long k, glasgow_2link_input *in)
 {
     real x[5 * N];

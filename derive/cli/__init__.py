@@ -1,0 +1,60 @@
+"""Command line: ``derive show|check|generate ...``. Thin: parse, call, report.
+
+Each command lives in its own module exposing ``add_arguments(parser)`` and
+``run(args) -> int``; this module only dispatches. Every DeriveError becomes
+one message on stderr and exit code 2, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from derive.errors import DeriveError
+
+# command -> (module, help)
+COMMANDS = {
+    "show": ("derive.cli.show", "print the derived dynamics, gains and laws"),
+    "check": ("derive.cli.check", "check the paper's claims as proof obligations"),
+    "generate": ("derive.cli.generate", "write the C and Python controllers of an arm"),
+    "embedded": ("derive.embedded.qemu", "cross-compile and run the C controller on emulated Cortex-M boards"),
+    "simulate": ("derive.cli.simulate", "simulate the arm in closed loop under the generated controllers"),
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="derive", description=(
+        "Derive and generate disturbance-observer-based and nonlinear PID controllers for "
+        "robot arms (Chen's paper, eq. 11-38)."))
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        importlib.import_module(module).add_arguments(sub.add_parser(name, help=help_text))
+    return parser
+
+
+def add_arm_argument(parser: argparse.ArgumentParser) -> None:
+    """The optional positional ARM every command takes."""
+    from derive.model.spec import DEFAULT_ARM
+
+    parser.add_argument("arm", nargs="?", default=None,
+                        help=f"arm file, or the name of a packaged arm (default {DEFAULT_ARM})")
+
+
+def report_warnings(derivation) -> None:
+    """Print a derivation's warnings on stderr (they never change the exit code)."""
+    for text in derivation.warnings:
+        print(f"derive: warning: {text}", file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``derive`` console script; returns the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        return importlib.import_module(COMMANDS[args.command][0]).run(args)
+    except DeriveError as exc:
+        print(f"derive: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("derive: interrupted", file=sys.stderr)
+        return 130

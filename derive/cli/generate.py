@@ -1,0 +1,36 @@
+"""``derive generate``: derive an arm and write generated/<arm>/ atomically."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from derive.codegen.files import REALS, generate_files
+from derive.codegen.emit import write_tree
+from derive.codegen.kernels import ParamsMode
+
+
+def add_arguments(parser) -> None:
+    """CLI: derive generate [ARM] [--out DIR] [--real double|float] [--params baked|runtime]."""
+    from derive.cli import add_arm_argument
+
+    add_arm_argument(parser)
+    parser.add_argument("--out", default="generated",
+                        help="parent folder; the arm's files go to OUT/<arm>/ (default: generated)")
+    parser.add_argument("--real", choices=REALS, default="double", help="C real type (default double)")
+    parser.add_argument("--params", choices=[m.value for m in ParamsMode], default="baked",
+                        help="parameters folded into constants (baked) or read at run time")
+
+
+def run(args) -> int:
+    from derive.cli import report_warnings
+    from derive.control.pipeline import derive
+    from derive.model.spec import load_arm
+
+    arm = load_arm(args.arm)
+    d = derive(arm)
+    report_warnings(d)
+    files = generate_files(d, None, args.real, ParamsMode(args.params))  # hash of the bytes load_arm read
+    target = Path(args.out) / arm.name
+    write_tree(target, files, keep=("sim",))  # derive simulate's results survive regeneration
+    print(f"derive: wrote {len(files)} files to {target}", file=sys.stderr)
+    return 0

@@ -1,0 +1,84 @@
+"""SymPy -> CasADi SX: each KernelSpec becomes a ``casadi.Function``.
+
+CasADi builds the expression graph, shares common subexpressions and
+allocates the work registers; ``derive.codegen.printing`` then prints its instruction
+list as C or Python. Exact rationals become the nearest double exactly once.
+"""
+from __future__ import annotations
+
+from fractions import Fraction
+
+import casadi as ca
+import sympy as sp
+
+from derive.errors import DerivationError
+from derive.codegen.kernels import KernelSpec
+
+_FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, sp.exp: ca.exp,
+              sp.log: ca.log}
+
+
+def _number(x: sp.Number) -> float:
+    if isinstance(x, sp.Rational):
+        return float(Fraction(int(x.p), int(x.q)))  # correctly rounded
+    return float(x)
+
+
+def to_sx(expr: sp.Expr, env: dict, memo: dict) -> ca.SX:
+    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars."""
+    hit = memo.get(expr)
+    if hit is not None:
+        return hit
+    if expr.is_Symbol:
+        try:
+            out = env[expr]
+        except KeyError:
+            raise DerivationError(f"symbol {expr} has no value in the kernel") from None
+    elif expr.is_Number:
+        out = ca.SX(_number(expr))
+    elif expr.is_Add:
+        terms = [to_sx(a, env, memo) for a in expr.args]
+        out = terms[0]
+        for t in terms[1:]:
+            out = out + t
+    elif expr.is_Mul:
+        factors = [to_sx(a, env, memo) for a in expr.args]
+        out = factors[0]
+        for f in factors[1:]:
+            out = out * f
+    elif expr.is_Pow:
+        base, exp = expr.args
+        b = to_sx(base, env, memo)
+        if exp.is_Integer:
+            k = int(exp)
+            out = b ** abs(k) if k != -1 else 1 / b
+            if k < -1:
+                out = 1 / out
+        elif exp == sp.Rational(1, 2):
+            out = ca.sqrt(b)
+        else:
+            out = b ** to_sx(exp, env, memo)
+    elif expr.func in _FUNCTIONS:
+        out = _FUNCTIONS[expr.func](to_sx(expr.args[0], env, memo))
+    else:
+        raise DerivationError(f"cannot translate {expr.func.__name__} to CasADi")
+    memo[expr] = out
+    return out
+
+
+def to_function(spec: KernelSpec) -> ca.Function:
+    """The CasADi Function of a kernel, with its port names."""
+    inputs = [ca.SX.sym(port.name, port.size) for port in spec.inputs]
+    env = {sym: inputs[k][i] for k, port in enumerate(spec.inputs) for i, sym in enumerate(port.items)}
+    memo: dict = {}
+    for solve in spec.solves:
+        A = ca.SX(solve.A.rows, solve.A.cols)
+        for i in range(solve.A.rows):
+            for j in range(solve.A.cols):
+                A[i, j] = to_sx(solve.A[i, j], env, memo)
+        b = ca.vertcat(*[to_sx(v, env, memo) for v in solve.b])
+        y = ca.solve(A, b)
+        env.update({u: y[i] for i, u in enumerate(solve.unknowns)})
+    outputs = [ca.vertcat(*[to_sx(sp.sympify(v), env, memo) for v in port.items]) for port in spec.outputs]
+    return ca.Function(spec.name, inputs, outputs, [p.name for p in spec.inputs],
+                       [p.name for p in spec.outputs], {"cse": True})

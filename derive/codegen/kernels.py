@@ -1,0 +1,151 @@
+"""Kernel specifications: the typed ports between the Derivation and emission.
+
+A :class:`KernelSpec` names its input ports (each a tuple of SymPy symbols) and
+its output ports (each a SymPy matrix over those symbols), as CasADi's
+``Function(name, [x], [y], ['x'], ['y'])`` and SymForce's ``Codegen`` do. The
+argument coverage is checked before anything is printed: every free symbol of
+an output must lie in exactly one input port (pydy's ``MatrixGenerator``).
+
+Kernels take the raw controller inputs (theta, theta', yd, yd', yd''), so the
+error e = yd - C theta (eq. 20) is part of the maths, not of the glue. A
+kernel may declare linear solves A y = b whose unknowns y its outputs use:
+J^-1 is never formed (design: the generated code solves numerically).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import sympy as sp
+
+from derive.errors import CoverageError
+from derive.control.pipeline import Derivation
+
+
+class ParamsMode(str, Enum):
+    """Where the arm's parameters live in generated code."""
+
+    BAKED = "baked"      # folded into constants
+    RUNTIME = "runtime"  # read from a caller-owned params struct
+
+
+@dataclass(frozen=True)
+class Port:
+    """A named vector of symbols (input) or expressions (output), with its shape."""
+
+    name: str
+    items: tuple
+    doc: str
+
+    @property
+    def size(self) -> int:
+        return len(self.items)
+
+
+@dataclass(frozen=True)
+class LinearSolve:
+    """Intermediate unknowns y (n symbols) with A y = b; A is n x n, b is n x 1."""
+
+    unknowns: tuple[sp.Symbol, ...]
+    A: sp.Matrix
+    b: sp.Matrix
+
+
+@dataclass(frozen=True)
+class KernelSpec:
+    """One generated function: name, ports, optional linear solves and a docstring."""
+
+    name: str
+    inputs: tuple[Port, ...]
+    outputs: tuple[Port, ...]
+    doc: str
+    solves: tuple[LinearSolve, ...] = ()
+
+    def __post_init__(self) -> None:
+        check_coverage(self)
+
+
+def check_coverage(spec: KernelSpec) -> None:
+    """Every free symbol of every output (and solve) lies in exactly one input port."""
+    owner: dict[sp.Symbol, str] = {}
+    for port in spec.inputs:
+        for s in port.items:
+            if s in owner:
+                raise CoverageError(f"kernel {spec.name}: symbol {s} is in input ports "
+                                    f"{owner[s]} and {port.name}")
+            owner[s] = port.name
+    unknowns = {y for solve in spec.solves for y in solve.unknowns}
+    used: set = set()
+    for solve in spec.solves:
+        used |= solve.A.free_symbols | solve.b.free_symbols
+    for port in spec.outputs:
+        for expr in port.items:
+            used |= sp.sympify(expr).free_symbols
+    missing = sorted(map(str, used - set(owner) - unknowns))
+    if missing:
+        raise CoverageError(f"kernel {spec.name}: outputs use symbols no input port provides: "
+                            f"{', '.join(missing)}")
+
+
+def _flat(m: sp.Matrix) -> tuple:
+    """Row-major entries of a matrix (C order)."""
+    return tuple(m[i, j] for i in range(m.rows) for j in range(m.cols))
+
+
+def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
+    """The kernels of an arm's controller (shapes for n joints, row-major).
+
+    gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
+    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
+    observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
+    from the derived dhat(0); x = (theta, theta', yd, yd', yd''), p = parameters
+    (runtime). The discretisation is part of the maths: forward Euler,
+    int_next = int_e + dt e and z_next = z + dt z'; the glue only chooses
+    (an integrator held at a voltage limit keeps int_e).
+    """
+    s = d.dynamics.sym
+    n = d.n
+    runtime = mode is ParamsMode.RUNTIME
+    value = (lambda m: m) if runtime else d.numeric
+    params = (Port("p", tuple(sym for sym, _ in d.values), "arm parameters and gains"),) if runtime else ()
+    e, _ = d.tracking_error
+
+    def law(m: sp.Matrix) -> sp.Matrix:
+        return d.measured(value(m))
+
+    theta = Port("theta", s.theta, "joint angles [rad]")
+    dtheta = Port("dtheta", s.dtheta, "joint velocities [rad/s]")
+    x = (theta, dtheta, Port("yd", s.yd, "reference y_d"), Port("dyd", s.dyd, "reference y_d'"),
+         Port("ddyd", s.ddyd, "reference y_d''"))
+    z = Port("z", s.z, "observer state (eq. 21)")
+    dt_sym = sp.Symbol("dt", positive=True)
+    dt = Port("dt", (dt_sym,), "sample time [s]")
+    npid = d.npid
+    dhat0 = law(npid.dhat0)
+    W, B = d.observer.W, d.dynamics.B
+    y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
+    solve = LinearSolve(y, value(d.dynamics.J), value(d.observer.J_solve_rhs))
+    return (
+        KernelSpec("gains", (theta, *params), (
+            Port("P", _flat(value(npid.P)), "proportional gain P(theta), eq. 35"),
+            Port("D", _flat(value(npid.D)), "derivative gain D(theta), eq. 36"),
+            Port("I", _flat(value(npid.I)), "integral gain I, eq. 37")),
+            "PID gains of the nonlinear PID predictive controller (eq. 35-37)"),
+        KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star)), "u*, eq. 15"),),
+                   "Nonlinear predictive control law u* (eq. 15)"),
+        KernelSpec("npid", (*x, Port("int_e", s.int_e, "integral of e (eq. 34)"), dt, *params), (
+            Port("u", _flat(law(npid.u_npid)), "u = P e + D e' + I int e + N, eq. 34"),
+            Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
+            "Nonlinear PID predictive control law (eq. 34-38) and its integrator step"),
+        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc)), "u* - dhat, eq. 27"),),
+                   "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
+        KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
+                 "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
+            "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically",
+            (solve,)),
+        KernelSpec("dobc_init", (*x[:4], *params), (
+            Port("z0", _flat(value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)),
+                 "z(0) = B dhat(0) - W theta'(0)"),),
+            "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"),
+    )

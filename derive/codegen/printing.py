@@ -1,0 +1,96 @@
+"""Print a CasADi Function's instruction list as C99 or Python statements.
+
+CasADi has already shared subexpressions and allocated work registers; this
+module only spells each instruction in the target language, with the chosen
+real type: for float, every literal carries an ``f`` suffix and every libm
+call is the float variant (``sinf``), so no double arithmetic is emitted.
+Instructions outside the table raise, so no unknown operation is ever printed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from derive.errors import DerivationError
+
+# op -> (C template, Python template); {0}, {1}: operand registers, {f}: libm suffix
+_OPS: dict[int, tuple[str, str]] = {
+    ca.OP_ASSIGN: ("{0}", "{0}"),
+    ca.OP_ADD: ("{0} + {1}", "{0} + {1}"),
+    ca.OP_SUB: ("{0} - {1}", "{0} - {1}"),
+    ca.OP_MUL: ("{0} * {1}", "{0} * {1}"),
+    ca.OP_DIV: ("{0} / {1}", "{0} / {1}"),
+    ca.OP_NEG: ("-{0}", "-{0}"),
+    ca.OP_TWICE: ("{0} + {0}", "{0} + {0}"),
+    ca.OP_SQ: ("{0} * {0}", "{0} * {0}"),
+    ca.OP_INV: ("{one} / {0}", "1.0 / {0}"),
+    ca.OP_SIN: ("sin{f}({0})", "_sin({0})"),
+    ca.OP_COS: ("cos{f}({0})", "_cos({0})"),
+    ca.OP_TAN: ("tan{f}({0})", "_tan({0})"),
+    ca.OP_SQRT: ("sqrt{f}({0})", "_sqrt({0})"),
+    ca.OP_FABS: ("fabs{f}({0})", "abs({0})"),
+    ca.OP_EXP: ("exp{f}({0})", "_exp({0})"),
+    ca.OP_LOG: ("log{f}({0})", "_log({0})"),
+    ca.OP_POW: ("pow{f}({0}, {1})", "{0} ** {1}"),
+    ca.OP_CONSTPOW: ("pow{f}({0}, {1})", "{0} ** {1}"),
+}
+
+
+@dataclass(frozen=True)
+class Printed:
+    """A kernel's body: register count, statements, and operation count."""
+
+    registers: int
+    statements: tuple[str, ...]
+    operations: int
+    unused_inputs: tuple[str, ...]
+
+
+def c_literal(value: float, real: str) -> str:
+    """A C literal of the real type: double with 17 significant digits, float
+    rounded to single precision with an ``f`` suffix."""
+    if real == "float":
+        text = str(np.float32(value))  # shortest text that rounds back to this float
+        return (text if ("." in text or "e" in text) else text + ".0") + "f"
+    text = repr(float(value))
+    return text if ("." in text or "e" in text or "inf" in text or "nan" in text) else text + ".0"
+
+
+def print_function(f: ca.Function, language: str, real: str = "double",
+                   inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None) -> Printed:
+    """Statements computing ``f`` with registers ``a0..``; inputs and outputs are
+    addressed as ``<port>[k]`` by port name (C arrays or Python sequences)."""
+    ins = inputs or tuple(f.name_in())
+    outs = outputs or tuple(f.name_out())
+    suffix = "f" if real == "float" else ""
+    one = c_literal(1.0, real)
+    lines: list[str] = []
+    ops = 0
+    read: set[int] = set()
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        args = f.instruction_input(k)
+        res = f.instruction_output(k)
+        if op == ca.OP_INPUT:
+            read.add(args[0])
+            lines.append(f"a{res[0]} = {ins[args[0]]}[{args[1]}]")
+        elif op == ca.OP_OUTPUT:
+            lines.append(f"{outs[res[0]]}[{res[1]}] = a{args[0]}")
+        elif op == ca.OP_CONST:
+            value = f.instruction_constant(k)
+            lit = c_literal(value, real) if language == "c" else repr(float(value))
+            lines.append(f"a{res[0]} = {lit}")
+        else:
+            try:
+                template = _OPS[op][0 if language == "c" else 1]
+            except KeyError:
+                raise DerivationError(f"kernel {f.name()}: CasADi operation {op} has no printer") from None
+            regs = [f"a{a}" for a in args]
+            lines.append(f"a{res[0]} = " + template.format(*regs, f=suffix, one=one))
+            ops += 1
+    if language == "c":
+        lines = [line + ";" for line in lines]
+    unused = tuple(name for i, name in enumerate(ins) if i not in read)
+    return Printed(registers=f.sz_w(), statements=tuple(lines), operations=ops, unused_inputs=unused)

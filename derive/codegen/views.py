@@ -1,0 +1,165 @@
+"""Plain data for the templates: one frozen view per artifact.
+
+Views hold strings, numbers and tuples only (no SymPy, no modules): the
+templates lay them out and never compute. Everything numeric that a template
+shows (literals, tolerances, test vectors) is computed here.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from derive.codegen.casadi_bridge import to_function
+from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
+from derive.control.pipeline import Derivation
+from derive.codegen.printing import c_literal, print_function
+
+_PARAM_DOCS = {
+    "l": "length of link {i} [m]", "m": "mass of link {i} [kg]",
+    "c": "centre-of-mass distance of link {i} from its joint [m]",
+    "Ic": "inertia of link {i} about its centre of mass [kg m^2]",
+    "bv": "viscous friction of joint {i} [N m s/rad]", "mp": "mass of point mass {i} [kg]",
+    "rp": "distance of point mass {i} from its link's joint [m]",
+    "Ip": "inertia of point mass {i} about its centre [kg m^2]",
+    "Kt": "torque constant of motor {i} [N m/A]", "Kv": "voltage constant of motor {i} [V s/rad]",
+    "Ra": "armature resistance of motor {i} [ohm]", "gr": "gear ratio of motor {i}",
+    "Jm": "rotor inertia of motor {i} [kg m^2]", "g": "gravity along -y of the base [m/s^2]",
+    "k1": "predictive gain K1 = k1 I (eq. 16)", "k2": "predictive gain K2 = k2 I (eq. 17)",
+    "w": "observer gain w{i} (eq. 25)",
+}
+
+
+def comment_text(text: str) -> str:
+    """``text`` safe inside a C block comment and a Python docstring alike:
+    printable ASCII kept, any other character and backslash or double quote
+    written as its code point (U+hhhh), comment delimiters broken apart. The spec already
+    rejects such text; this is the second line of defence at the edge."""
+    out = "".join(ch if (" " <= ch <= "~" and ch not in '\\"') else f"U+{ord(ch):04X}" for ch in text)
+    return out.replace("*/", "* /").replace("/*", "/ *")
+
+
+def param_doc(name: str) -> str:
+    """Human description of a parameter symbol name such as ``Kt2``."""
+    match = re.fullmatch(r"([A-Za-z]+?)(\d*)", name)
+    prefix, index = (match.group(1), match.group(2)) if match else (name, "")
+    if name in _PARAM_DOCS:
+        return _PARAM_DOCS[name]
+    return _PARAM_DOCS.get(prefix, name).format(i=index)
+
+
+@dataclass(frozen=True)
+class KernelView:
+    """One kernel for the templates: its C and Python signatures and bodies."""
+
+    name: str
+    doc: str
+    c_args: tuple[str, ...]       # "const real theta[2]", ..., "real u[2]"
+    py_args: tuple[str, ...]
+    py_outputs: tuple[tuple[str, int], ...]
+    registers: int
+    c_body: tuple[str, ...]
+    py_body: tuple[str, ...]
+    operations: int
+    unused: tuple[str, ...]      # input ports the maths does not read
+
+
+@dataclass(frozen=True)
+class ArmView:
+    """What every template of one arm needs (all plain data)."""
+
+    arm: str
+    ARM: str
+    description: str
+    source_name: str
+    n: int
+    real: str
+    runtime: bool
+    params: tuple[tuple[str, str, str], ...]   # (field, C default literal, doc)
+    py_params: tuple[tuple[str, str, str], ...]
+    u_max: tuple[str, ...]                      # C literals, 0 = no limit
+    py_u_max: tuple[str, ...]
+    kernels: tuple[KernelView, ...]
+    k1: str
+    k2: str
+    w: tuple[str, ...]
+
+
+def kernel_view(spec: KernelSpec, real: str, prefix: str) -> KernelView:
+    f = to_function(spec)
+    c = print_function(f, "c", real)
+    py = print_function(f, "python")
+    c_args = tuple(f"const {prefix}_real {p.name}[{p.size}]" for p in spec.inputs)
+    c_args += tuple(f"{prefix}_real {p.name}[{p.size}]" for p in spec.outputs)
+    return KernelView(name=spec.name, doc=spec.doc, c_args=c_args,
+                      py_args=tuple(p.name for p in spec.inputs),
+                      py_outputs=tuple((p.name, p.size) for p in spec.outputs),
+                      registers=c.registers, c_body=c.statements, py_body=py.statements,
+                      operations=c.operations, unused=c.unused_inputs)
+
+
+def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
+    """The view of one arm for one real type and parameter mode."""
+    arm = d.arm
+    values = [(str(s), float(v)) for s, v in d.values]
+    limits = [float(m.voltage_limit) if m.voltage_limit is not None else 0.0 for m in arm.motors]
+    numbers = dict(values)
+    return ArmView(
+        arm=arm.name, ARM=arm.name.upper(), description=comment_text(arm.description),
+        source_name=comment_text(arm.source.replace("\\", "/").rsplit("/", 1)[-1]), n=d.n, real=real,
+        runtime=mode is ParamsMode.RUNTIME,
+        params=tuple((name, c_literal(v, real), param_doc(name)) for name, v in values),
+        py_params=tuple((name, repr(v), param_doc(name)) for name, v in values),
+        u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(repr(v) for v in limits),
+        kernels=tuple(kernel_view(k, real, arm.name) for k in kernel_specs(d, mode)),
+        k1=repr(numbers["k1"]), k2=repr(numbers["k2"]),
+        w=tuple(repr(numbers[f"w{i + 1}"]) for i in range(d.n)))
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    gains: str
+    mpc: str
+    npid: str
+    dobc: str
+    dobc_init: str
+    observer: str
+    seq: str
+
+
+@dataclass(frozen=True)
+class SelftestView:
+    """Test vectors and stated tolerances for the C self-test."""
+
+    rule: str
+    cases: tuple
+    seq: object
+    steps: int
+    dt: str
+    c128: str
+    c05: str
+    fabs: str
+    tol: Tolerances
+
+
+def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
+    """Reference vectors (derive.codegen.testvectors) as C literals of the view's real type."""
+    from derive.codegen import testvectors as tv
+    from derive.codegen.reference import Reference
+
+    ref = Reference(d)
+    lit = lambda xs: tuple(c_literal(x, v.real) for x in xs)  # noqa: E731
+    raw = tv.cases(ref, count)
+    cases = tuple(type(c)(*(lit(getattr(c, f)) for f in c.__dataclass_fields__)) for c in raw)
+    seq = {k: lit(val) for k, val in tv.sequence(ref).items()}
+    ops = {k.name: k.operations for k in v.kernels}
+    if v.real == "double":
+        tol = Tolerances(*(c_literal(tv.DOUBLE_TOL, "double"),) * 7)
+        rule = f"double {tv.DOUBLE_TOL:g}"
+    else:
+        b = lambda *names, steps=0: c_literal(tv.float_bound(sum(ops[n] for n in names), steps), "float")  # noqa: E731
+        tol = Tolerances(b("gains"), b("mpc"), b("npid"), b("dobc"), b("dobc_init"), b("dobc", "observer"),
+                         b("npid", "dobc", "observer", steps=tv.SEQUENCE_STEPS))
+        rule = "float 16 (K + steps) 2^-24 for a kernel of K operations (derive.codegen.testvectors)"
+    return SelftestView(rule=rule, cases=cases, seq=type("Seq", (), seq), steps=tv.SEQUENCE_STEPS,
+                        dt=c_literal(tv.SEQUENCE_DT, v.real), c128=c_literal(128.0, v.real),
+                        c05=c_literal(0.5, v.real), fabs="fabsf" if v.real == "float" else "fabs", tol=tol)

@@ -1,0 +1,65 @@
+"""Taylor-expansion predictive control (eq. 14-19) and its law u* (eq. 15).
+
+Predicting y(t + tau) by its second-order Taylor expansion and minimising the
+index (14) over [T1, T2] gives the closed form K1 = Tbar33^-1 Tbar31,
+K2 = Tbar33^-1 Tbar32 (eq. 16-18). Since Tbar_i = diag(T_i, ..., T_i)
+(eq. 19), K1 = k1 I and K2 = k2 I with scalar k1, k2.
+
+The law is written without J^-1: (C J^-1 B)^-1 = B^-1 J C^-1, so
+u* = B^-1 J C^-1 (K1 e + K2 e' + yd'') + B^-1 G   (eq. 15 with e = yd - y, eq. 20).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+import sympy as sp
+
+from derive.dynamics.planar import Dynamics
+
+T1, T2 = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
+k1, k2 = sp.Symbol("k1", positive=True), sp.Symbol("k2", positive=True)
+
+
+def tbar(i: int, j: int, t1: sp.Expr = T1, t2: sp.Expr = T2) -> sp.Expr:
+    """Scalar Tbar_ij of eq. (18) (the diagonal entry of the matrix, eq. 19)."""
+    k = i + j - 1
+    return (t2 ** k - t1 ** k) / (sp.factorial(i - 1) * sp.factorial(j - 1) * k)
+
+
+def gains(t1: sp.Expr = T1, t2: sp.Expr = T2) -> tuple[sp.Expr, sp.Expr]:
+    """(k1, k2) of eq. (16-17): K1 = k1 I, K2 = k2 I; symbolic by default."""
+    return (sp.factor(tbar(3, 1, t1, t2) / tbar(3, 3, t1, t2)),
+            sp.factor(tbar(3, 2, t1, t2) / tbar(3, 3, t1, t2)))
+
+
+@dataclass(frozen=True)
+class Mpc:
+    """Predictive controller in the gain symbols k1, k2 (shapes for n joints).
+
+    K1, K2: n x n (k1 I, k2 I); Cout: n x n output matrix C (eq. 13);
+    u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; values: exact k1, k2.
+    """
+
+    K1: sp.Matrix
+    K2: sp.Matrix
+    Cout: sp.Matrix
+    u_star: sp.Matrix
+    values: tuple[tuple[sp.Symbol, sp.Rational], ...]
+
+
+def _rational(x: Fraction) -> sp.Rational:
+    return sp.Rational(x.numerator, x.denominator)
+
+
+def derive_mpc(dyn: Dynamics, t1: Fraction, t2: Fraction, C: tuple[tuple[Fraction, ...], ...]) -> Mpc:
+    """The law u* (eq. 15) for the dynamics, with gains k1, k2 for [t1, t2]."""
+    n = dyn.J.rows
+    s = dyn.sym
+    K1, K2 = k1 * sp.eye(n), k2 * sp.eye(n)
+    Cout = sp.Matrix([[_rational(x) for x in row] for row in C])
+    e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
+    Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])
+    u_star = Binv * dyn.J * Cout.inv() * (K1 * e + K2 * de + ddyd) + Binv * dyn.G
+    v1, v2 = gains(_rational(t1), _rational(t2))
+    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, values=((k1, v1), (k2, v2)))

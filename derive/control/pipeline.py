@@ -1,0 +1,124 @@
+"""The pipeline: arm -> dynamics -> mpc -> observer -> npid = one frozen Derivation.
+
+Every stage works in parameter symbols (masses, lengths, motor constants,
+gains k1, k2, w); the Derivation also carries the matrices with the arm's exact
+values put in, which is what users and the tests read.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from derive.dynamics.planar import Dynamics, derive_dynamics, lumped_2link
+from derive.control.mpc import Mpc, derive_mpc, gains
+from derive.control.npid import Npid, derive_npid
+from derive.control.observer import Observer, derive_observer, speed_bound
+from derive.model.spec import Arm
+
+
+@dataclass(frozen=True)
+class Derivation:
+    """The single intermediate representation of an arm's controller.
+
+    Numeric (arm values put in, exact rationals) SymPy matrices, n joints:
+    J (n x n, eq. 12), G (n x 1), B (n x n), K1, K2 (n x n, eq. 16-17),
+    W (n x n, eq. 25), L (n x n, eq. 24; an unevaluated W J^-1 for n > 2),
+    P, D, I (n x n, eq. 35-37), N (n x 1, eq. 38), dhat0 (n x 1, the derived
+    initial estimate in e0_i, de0_i), u_star (eq. 15), u_dobc (eq. 27),
+    u_npid (eq. 34), dhat (eq. 22). ``lumped``: j1, j2, j3, X of eq. (a6) for
+    n = 2, else None; ``speed_bound``: w1/X, the largest theta2' for which
+    (26) holds (n = 2, else None); ``warnings``: sentences for the user (e.g. a
+    stated maximum speed above that bound). ``dynamics``, ``mpc``, ``observer``, ``npid``
+    hold the same in symbols; ``values`` maps every symbol to its value.
+    """
+
+    arm: Arm
+    dynamics: Dynamics
+    mpc: Mpc
+    observer: Observer
+    npid: Npid
+    values: tuple[tuple[sp.Symbol, sp.Rational], ...]
+    theta: tuple[sp.Symbol, ...]
+    dtheta: tuple[sp.Symbol, ...]
+    J: sp.Matrix
+    G: sp.Matrix
+    B: sp.Matrix
+    C: sp.Matrix
+    K1: sp.Matrix
+    K2: sp.Matrix
+    W: sp.Matrix
+    L: object
+    P: sp.Matrix
+    D: sp.Matrix
+    I: sp.Matrix
+    N: sp.Matrix
+    dhat0: sp.Matrix
+    u_star: sp.Matrix
+    u_dobc: sp.Matrix
+    u_npid: sp.Matrix
+    dhat: sp.Matrix
+    lumped: dict | None
+    speed_bound: sp.Expr | None
+    warnings: tuple[str, ...]
+
+    @property
+    def n(self) -> int:
+        return len(self.theta)
+
+    @property
+    def k_formulas(self) -> tuple[sp.Expr, sp.Expr]:
+        """k1, k2 in the symbols T1, T2 (eq. 16-18)."""
+        return gains()
+
+    def numeric(self, expr):
+        """``expr`` (in parameter and gain symbols) with the arm's values put in."""
+        return expr.xreplace(dict(self.values))
+
+    @property
+    def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each)."""
+        s = self.dynamics.sym
+        return (sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta),
+                sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta))
+
+    def measured(self, expr):
+        """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
+        at the first sample e(0) and e'(0) are the current e and e'."""
+        s = self.dynamics.sym
+        e, de = self.tracking_error
+        return expr.xreplace({**dict(zip(s.e, e)), **dict(zip(s.de, de)),
+                              **dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
+
+
+def derive(arm: Arm) -> Derivation:
+    """Derive the dynamics, predictive law, observer and PID form of ``arm``."""
+    dyn = derive_dynamics(arm)
+    ctl = arm.controller
+    mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
+    obs = derive_observer(dyn, ctl.w)
+    npid = derive_npid(dyn, mpc, obs)
+    values = dyn.params.values + mpc.values + obs.values
+    rep = dict(values)
+
+    def num(m):
+        return m.xreplace(rep)
+
+    lumped = bound = None
+    if arm.n == 2:
+        lumped = {k: v.xreplace(rep) for k, v in lumped_2link(dyn).items()}
+        bound = speed_bound(lumped["X"], rep[obs.w[0]]) if lumped["X"] != 0 else sp.oo
+    warnings = []
+    speeds = ctl.max_joint_speed
+    if bound is not None and speeds is not None and sp.Rational(speeds[1].numerator, speeds[1].denominator) >= bound:
+        warnings.append(
+            f"controller.max_joint_speed[2] = {float(speeds[1]):g} rad/s is not below w1/X = "
+            f"{float(bound):.6g} rad/s: condition (26) fails there, so theorem 2 does not "
+            "guarantee that the observer converges at that speed (raise w1 or lower the speed)")
+    return Derivation(
+        arm=arm, dynamics=dyn, mpc=mpc, observer=obs, npid=npid, values=values,
+        theta=dyn.sym.theta, dtheta=dyn.sym.dtheta, J=num(dyn.J), G=num(dyn.G), B=num(dyn.B),
+        C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
+        D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
+        u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
+        speed_bound=bound, warnings=tuple(warnings))

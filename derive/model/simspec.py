@@ -1,0 +1,126 @@
+"""The ``[simulation]`` section of an arm file: what the plant has that the
+controller does not know, and how the paper's experiment (section 5) is run.
+
+Defaults (every key optional):
+
+==================  =====================  ===========================================
+key                 default                meaning
+==================  =====================  ===========================================
+duration            30.0                   simulated time [s]
+sample_time         0.002                  controller sample time [s]
+substeps            4                      RK4 steps of the plant per sample
+pulse_period        30.0                   period of the reference pulse train [s]
+amplitude_deg       90.0                   pulse amplitude (section 5.2) [deg]
+start               [0, 5, 10, ...]        when each link's pulse train starts [s]
+coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
+viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
+payload_scale       1.2                    mass factor of the last link's point masses
+disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V] (eq. 12)
+velocity_noise      [0, ...]               tachometer noise std [rad/s]
+position_noise      [0, ...]               potentiometer noise std [rad]
+tacho_filter_hz     0.0                    first-order low-pass on theta-dot, 0 = none
+initial_theta       [0, ...]               the arm's initial joint angles [rad] (at rest)
+seed                1                      noise seed
+==================  =====================  ===========================================
+
+The default friction makes the predictive controller's steady-state error
+plain to see (the paper names friction as the main cause of MPC's poor tracking);
+the default mismatch is a 20% heavier tip and an unknown constant input
+disturbance (an amplifier offset: the theory's assumption, eq. 12 and 40). Voltage limits are the motors'
+``voltage_limit``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+from derive.errors import Problem
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Simulation settings (see module docstring for units and defaults)."""
+
+    duration: float = 30.0
+    sample_time: float = 0.002
+    substeps: int = 4
+    pulse_period: float = 30.0
+    amplitude_deg: float = 90.0
+    start: tuple[float, ...] = ()
+    coulomb_friction: tuple[float, ...] = ()
+    viscous_friction: tuple[float, ...] = ()
+    payload_scale: float = 1.2
+    disturbance: tuple[float, ...] = ()
+    velocity_noise: tuple[float, ...] = ()
+    position_noise: tuple[float, ...] = ()
+    tacho_filter_hz: float = 0.0
+    seed: int = 1
+    initial_theta: tuple[float, ...] = ()
+
+
+def default_settings(n: int) -> SimSettings:
+    """Defaults for an n-joint arm."""
+    return SimSettings(start=tuple(5.0 * i for i in range(n)),
+                       coulomb_friction=tuple(0.05 if i == 0 else 0.01 for i in range(n)),
+                       viscous_friction=tuple(0.01 if i == 0 else 0.002 for i in range(n)),
+                       disturbance=tuple(0.3 if i == 0 else 0.1 for i in range(n)), velocity_noise=(0.0,) * n,
+                       position_noise=(0.0,) * n, initial_theta=(0.0,) * n)
+
+
+_SCALARS = {"duration": (0.0, True), "sample_time": (0.0, True), "pulse_period": (0.0, True),
+            "amplitude_deg": (None, False), "payload_scale": (0.0, False), "tacho_filter_hz": (0.0, False)}
+_VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "disturbance": None,
+            "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None}
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
+    """Settings from a ``[simulation]`` table, and every problem found in it."""
+    base = default_settings(n)
+    problems: list[Problem] = []
+    if table is None:
+        return base, problems
+    if not isinstance(table, dict):
+        return base, [Problem("simulation", "a table", repr(table)[:60])]
+    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed"}
+    values: dict[str, Any] = {}
+    for key in sorted(set(table) - allowed):
+        problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",
+                                "<present>"))
+    for key, (low, strict) in _SCALARS.items():
+        if key in table:
+            v = table[key]
+            bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
+            if not _finite(v) or (low is not None and (v < low or (strict and v == low))):
+                problems.append(Problem(f"simulation.{key}", f"a finite number{bound}", repr(v)[:60]))
+            else:
+                values[key] = float(v)
+    for key in ("substeps", "seed"):
+        if key in table:
+            v = table[key]
+            if not isinstance(v, int) or isinstance(v, bool) or v < (1 if key == "substeps" else 0):
+                problems.append(Problem(f"simulation.{key}", "a whole number >= 1" if key == "substeps"
+                                        else "a whole number >= 0", repr(v)[:60]))
+            else:
+                values[key] = v
+    for key, low in _VECTORS.items():
+        if key in table:
+            v = table[key]
+            ok = isinstance(v, list) and len(v) == n and all(_finite(x) for x in v)
+            if ok and low is not None:
+                ok = all(x >= low for x in v)
+            if not ok:
+                bound = "" if low is None else f" >= {low:g}"
+                problems.append(Problem(f"simulation.{key}", f"an array of {n} finite numbers{bound}",
+                                        repr(v)[:60]))
+            else:
+                values[key] = tuple(float(x) for x in v)
+    duration = values.get("duration", base.duration)
+    sample = values.get("sample_time", base.sample_time)
+    if sample >= duration and "sample_time" in values:
+        problems.append(Problem("simulation.sample_time", f"less than duration = {duration:g} s", repr(sample)))
+    return (replace(base, **values) if not problems else base), problems

@@ -1,0 +1,66 @@
+"""PNG figures of simulation traces, laid out like the paper's Figures 5-8.
+
+matplotlib with the Agg backend, fixed size and dpi, no metadata timestamps.
+"""
+from __future__ import annotations
+
+import io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from derive.sim.simulate import Trace  # noqa: E402
+
+STYLE = {"mpc": ("tab:red", "-"), "dobc": ("tab:blue", "--"), "npid": ("tab:green", "-"),
+         "npid_unprotected": ("tab:orange", ":")}
+LABEL = {"mpc": "MPC (eq. 15)", "dobc": "DOBC (eq. 27)", "npid": "NPID (eq. 34)",
+         "npid_unprotected": "PID without anti-windup"}
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def link_figure(traces: list[Trace], i: int) -> bytes:
+    """Link i: u [V], theta-dot [deg/s], theta and y_d [deg] (Figures 5-6)."""
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    for tr in traces:
+        color, ls = STYLE.get(tr.name, ("k", "-"))
+        axes[0].plot(tr.t, tr.u[:, i], color=color, ls=ls, lw=1, label=LABEL.get(tr.name, tr.name))
+        axes[1].plot(tr.t, np.degrees(tr.dtheta[:, i]), color=color, ls=ls, lw=1)
+        axes[2].plot(tr.t, np.degrees(tr.theta[:, i]), color=color, ls=ls, lw=1)
+    axes[2].plot(traces[0].t, np.degrees(traces[0].yd[:, i]), color="k", lw=0.8, ls="-.", label="y_d")
+    for ax, label in zip(axes, ("u [V]", "velocity [deg/s]", "position [deg]")):
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.3)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[2].legend(loc="upper right", fontsize=8)
+    axes[2].set_xlabel("t [s]")
+    fig.suptitle(f"link {i + 1}")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def error_figure(traces: list[Trace]) -> bytes:
+    """Tracking error y_d - theta of every controller, per link (Figures 7-8)."""
+    n = traces[0].theta.shape[1]
+    fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
+    for i in range(n):
+        ax = axes[i, 0]
+        for tr in traces:
+            color, ls = STYLE.get(tr.name, ("k", "-"))
+            ax.plot(tr.t, np.degrees(tr.yd[:, i] - tr.theta[:, i]), color=color, ls=ls, lw=1,
+                    label=LABEL.get(tr.name, tr.name))
+        ax.set_ylabel(f"e{i + 1} [deg]")
+        ax.grid(True, lw=0.3)
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.suptitle("tracking error")
+    fig.tight_layout()
+    return _png(fig)

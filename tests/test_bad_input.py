@@ -147,6 +147,14 @@ def hollow_tip(d: dict) -> None:
     d["motor"][-1]["rotor_inertia"] = 0.0
 
 
+def massless_tip(d: dict) -> None:
+    """The last link massless (mass 0, inertia 0, valid: issue 10 item 7) and carrying
+    nothing: then joint 2 moves no inertia at all."""
+    d["link"][-1].update(mass=0.0, inertia=0.0)
+    d["point_mass"] = [p for p in d["point_mass"] if p["link"] != len(d["link"])]
+    d["motor"][-1]["rotor_inertia"] = 0.0
+
+
 def many_problems() -> str:
     """Seven problems in seven places of one file."""
     text = DEFAULT_TEXT
@@ -223,7 +231,7 @@ CASES = [
     C_("division-by-zero", edit(T2, 'T2 = "1/0"'), ("controller.T2",), "division by zero"),
     C_("giant-exponent", edit(T2, 'T2 = "1e999999999/1"'), ("controller.T2",), "string '1e999999999/1'"),
     # physically impossible values
-    C_("zero-mass", edit(M1, "mass = 0.0"), ("link[1].mass",), "a finite number > 0 (kg), got 0.0"),
+    C_("massless-last-link", chain(massless_tip), ("link[2]",), "an inertia about joint 2 > 0"),
     C_("negative-mass", edit(M1, "mass = -0.3"), ("link[1].mass",), "got -0.3", cli=True),
     C_("zero-length", edit(L1, "length = 0"), ("link[1].length",), "> 0 (m), got 0"),
     C_("negative-length", edit(L1, "length = -0.38"), ("link[1].length",), "got -0.38"),

@@ -43,7 +43,7 @@ class Reference:
         self._W = mpmath.matrix(d.W.tolist())
         self._z0 = fn(x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
         limits = u_max if u_max is not None else [
-            float(m.voltage_limit) if m.voltage_limit is not None else 0.0 for m in d.arm.motors]
+            float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors]
         self.u_max = [mpmath.mpf(v) for v in limits]
 
     @staticmethod

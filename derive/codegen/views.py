@@ -101,7 +101,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
     """The view of one arm for one real type and parameter mode."""
     arm = d.arm
     values = [(str(s), float(v)) for s, v in d.values]
-    limits = [float(m.voltage_limit) if m.voltage_limit is not None else 0.0 for m in arm.motors]
+    limits = [float(m.input_limit) if m.input_limit is not None else 0.0 for m in arm.motors]
     numbers = dict(values)
     return ArmView(
         arm=arm.name, ARM=arm.name.upper(), description=comment_text(arm.description),

@@ -122,15 +122,16 @@ def crba(bodies: tuple[Body, ...], q, lengths, reflected) -> sp.Matrix:
     return J
 
 
-def rnea(bodies: tuple[Body, ...], q, dq, ddq, lengths, g) -> sp.Matrix:
+def rnea(bodies: tuple[Body, ...], q, dq, ddq, lengths, g, down=(0, -1)) -> sp.Matrix:
     """Planar recursive Newton-Euler inverse dynamics (rigid part, no motor terms).
 
-    Returns tau (n x 1) with tau = J_rigid ddq + bias; gravity g acts along -y
-    of the base frame, put in as an upward acceleration of the base.
+    Returns tau (n x 1) with tau = J_rigid ddq + bias; gravity g acts along the
+    unit vector ``down`` of the base frame (default -y), put in as an
+    acceleration -g down of the base.
     """
     n = len(bodies)
     w = a = sp.Integer(0)
-    acc = (sp.Integer(0), g)            # acceleration of the current joint's origin, current frame
+    acc = (-g * down[0], -g * down[1])  # acceleration of the current joint's origin, current frame
     forces, moments = [], []
     for i in range(n):
         if i > 0:
@@ -154,6 +155,13 @@ def rnea(bodies: tuple[Body, ...], q, dq, ddq, lengths, g) -> sp.Matrix:
     return sp.Matrix(tau)
 
 
+def _down(arm: Arm) -> tuple[sp.Expr, sp.Expr]:
+    """The unit direction of free fall in the base plane (arm.gravity_direction, normalised)."""
+    g = arm.chain.gravity
+    symbol = next(p.symbol for p in arm.chain.parameters if p.field == "arm.gravity")
+    return sp.expand(g[0] / symbol), sp.expand(g[1] / symbol)
+
+
 def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.Matrix]:
     """Reference J and rigid G (Coriolis, centrifugal, gravity) from the Lagrangian.
 
@@ -167,6 +175,7 @@ def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.
     for i in range(n):
         x, y = joint[-1]
         joint.append((x + p.length[i] * sp.cos(phi[i]), y + p.length[i] * sp.sin(phi[i])))
+    down = _down(arm)
     masses = [(p.mass[i], i, p.com[i], p.inertia[i]) for i in range(n)]
     masses += [(p.pm_mass[k], pm.link, p.pm_distance[k], p.pm_inertia[k])
                for k, pm in enumerate(arm.point_masses)]
@@ -178,7 +187,7 @@ def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.
         vy = sum(sp.diff(y, qj) * dqj for qj, dqj in zip(q, dq))
         wi = sum(dq[: i + 1])
         T += m * (vx ** 2 + vy ** 2) / 2 + inertia * wi ** 2 / 2
-        V += m * p.g * y
+        V -= m * p.g * (down[0] * x + down[1] * y)
     T += sum(p.gear[i] ** 2 * p.Jm[i] * dq[i] ** 2 for i in range(n)) / 2
     dT = sp.Matrix([sp.diff(T, v) for v in dq])
     J = dT.jacobian(dq).applyfunc(sp.expand)
@@ -207,8 +216,9 @@ def derive_dynamics(arm: Arm) -> Dynamics:
     reflected = [p.gear[i] ** 2 * p.Jm[i] for i in range(n)]
     J = crba(bodies, s.theta, p.length, reflected)
     zero = [sp.Integer(0)] * n
-    bias = rnea(bodies, s.theta, s.dtheta, zero, p.length, p.g)
-    gravity = rnea(bodies, s.theta, zero, zero, p.length, p.g)
+    down = _down(arm)
+    bias = rnea(bodies, s.theta, s.dtheta, zero, p.length, p.g, down)
+    gravity = rnea(bodies, s.theta, zero, zero, p.length, p.g, down)
     damping = sp.diag(*[p.gear[i] ** 2 * p.Kt[i] * p.Kv[i] / p.R[i] + p.friction[i] for i in range(n)])
     G = bias + damping * sp.Matrix(s.dtheta)
     B = sp.diag(*[p.gear[i] * p.Kt[i] / p.R[i] for i in range(n)])

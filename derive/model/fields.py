@@ -161,7 +161,7 @@ class Num:
 
 
 POSITIVE = {u: Num(u, _ZERO, True) for u in ("m", "kg", "N m/A", "ohm", "s", "rad/s", "V", "")}
-NONNEGATIVE = {u: Num(u, _ZERO) for u in ("kg m^2", "N m s/rad", "V s/rad", "m/s^2", "s")}
+NONNEGATIVE = {u: Num(u, _ZERO) for u in ("kg", "kg m^2", "N m s/rad", "V s/rad", "m/s^2", "s")}
 ANY = {u: Num(u) for u in ("m", "1/s", "")}
 
 

@@ -8,68 +8,51 @@ problem in a file is collected and reported in one :class:`SpecError`, each
 naming the field (``link[2].mass``), the expected (``a finite number > 0 (kg)``)
 and the given value (``-0.3``, ``string 'abc'``); unknown keys are problems too.
 
-The model (see README, "Describing an arm"): a planar serial chain of n >= 1
-revolute joints, angles relative to the previous link (eq. a6 uses theta_2 so);
-gravity, when given, acts along -y of the base frame with theta = 0 along +x.
+An arm is its kinematic chain (:attr:`Arm.chain`, the one model the dynamics
+read, :mod:`derive.model.chain`), the drive of each joint
+(:attr:`Arm.actuators`, :mod:`derive.model.actuators`), the controller settings
+and the simulation settings. The chain comes from ``[[link]]`` and
+``[[point_mass]]`` tables (a planar chain, :mod:`derive.model.planar`).
+
+``[arm]`` keys: ``name``, ``description``, ``gravity`` (the magnitude g >= 0 in
+m/s^2, default 0), ``gravity_direction`` (the direction of free fall in the
+base frame, normalised; a planar arm gives [x, y], default [0, -1], so
+[0, 1] is a ceiling-mounted arm), ``actuation`` ("voltage", the default, or
+"torque": the default of every ``[[motor]]``).
+
+The runtime parameters (:attr:`Arm.parameters`) are the file's own values,
+each with its unit and field: the chain's, the drives' (Kt, Kv, Ra, gr, Jm,
+bv per joint) and the controller's (T1, T2, w); everything else is an
+expression of them.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
-import numbers
 import tomllib
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+import sympy as sp
+
 from derive.errors import Problem, SpecError
+from derive.model.actuators import Actuation, Actuator, Motor, actuation_value, actuator, read_motors
+from derive.model.chain import Chain, Parameter
 from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show, text_problem
 from derive.model.names import name_check
+from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
+from derive.model.singular import unmoved_joint
+
+__all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
 
 DEFAULT_ARM = "glasgow_2link"
 ARMS_DIR = Path(__file__).parent / "arms"
-UNIFORM_ROD = "uniform_rod"
 MAX_FILE_BYTES = 1 << 20   # an arm file is a few kB; never read /dev/zero whole
 _MISSING = object()
 _ZERO = Fraction(0)
-
-
-@dataclass(frozen=True)
-class Link:
-    """One link: length l, mass m, centre of mass at distance com from its joint
-    along the link, inertia about the centre of mass, viscous joint friction."""
-
-    length: Fraction
-    mass: Fraction
-    com: Fraction
-    inertia: Fraction
-    viscous_friction: Fraction
-
-
-@dataclass(frozen=True)
-class PointMass:
-    """A point mass (a carried motor, a tip payload) on link ``link`` (0-based),
-    at ``distance`` from that link's joint along the link."""
-
-    link: int
-    distance: Fraction
-    mass: Fraction
-    inertia: Fraction
-    label: str
-
-
-@dataclass(frozen=True)
-class Motor:
-    """A DC motor with armature inductance neglected:
-    tau = gear Kt (V - gear Kv dtheta) / R (eq. 11-12 with voltage input)."""
-
-    torque_constant: Fraction
-    voltage_constant: Fraction
-    resistance: Fraction
-    gear_ratio: Fraction
-    rotor_inertia: Fraction
-    voltage_limit: Fraction | None
 
 
 @dataclass(frozen=True)
@@ -85,7 +68,12 @@ class Controller:
 
 @dataclass(frozen=True)
 class Arm:
-    """A validated arm description."""
+    """A validated arm description.
+
+    ``links``, ``point_masses``: the planar tables as read; ``gravity``: the
+    magnitude g [m/s^2]; ``gravity_direction``: as written (normalised in the
+    chain); ``motors``: one per joint.
+    """
 
     name: str
     description: str
@@ -97,11 +85,78 @@ class Arm:
     source: str
     simulation: SimSettings = field(default_factory=SimSettings, compare=False)
     source_sha256: str = ""  # of the bytes validated (load_arm), recorded in MANIFEST.json
+    gravity_direction: tuple[Fraction, ...] = (Fraction(0), Fraction(-1))
 
     @property
     def n(self) -> int:
         """Number of joints."""
         return len(self.links)
+
+    @property
+    def chain(self) -> Chain:
+        """The normalised kinematic chain (bodies, joints, gravity) the dynamics read."""
+        return _planar(self.links, self.point_masses, self.gravity, self.gravity_direction)
+
+    @property
+    def actuators(self) -> tuple[Actuator, ...]:
+        """The drive of each joint (B, damping, reflected rotor inertia; eq. 12)."""
+        return _drives(self.motors, tuple(link.viscous_friction for link in self.links))[0]
+
+    @property
+    def parameters(self) -> tuple[Parameter, ...]:
+        """Every runtime parameter, in canonical order: the chain's, the drives'
+        (grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the controller's (T1, T2, w)."""
+        drives = _drives(self.motors, tuple(link.viscous_friction for link in self.links))[1]
+        return self.chain.parameters + drives + controller_parameters(self.controller)
+
+
+T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
+
+
+def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
+    """Observer gain symbols w1..wn (eq. 25)."""
+    return tuple(sp.Symbol(f"w{i + 1}", positive=True) for i in range(n))
+
+
+def controller_parameters(c: Controller) -> tuple[Parameter, ...]:
+    """T1, T2 (eq. 14) and w1..wn (eq. 25) as parameters; k1, k2 are expressions of T1, T2."""
+    out = [Parameter(T1_SYMBOL, c.T1, "s", "controller.T1", "minimum prediction time T1 (eq. 14)"),
+           Parameter(T2_SYMBOL, c.T2, "s", "controller.T2", "maximum prediction time T2 (eq. 14)")]
+    out += [Parameter(w, v, "1/s", f"controller.w[{i}]", f"observer gain w{i} (eq. 25)")
+            for i, (w, v) in enumerate(zip(w_symbols(len(c.w)), c.w), 1)]
+    return tuple(out)
+
+
+def gravity_parameter(g: Fraction) -> Parameter:
+    return Parameter(sp.Symbol("g", nonnegative=True), g, "m/s^2", "arm.gravity",
+                     "acceleration of free fall along gravity_direction")
+
+
+def unit_direction(direction: tuple[Fraction, ...]) -> sp.ImmutableMatrix:
+    """The 3 x 1 unit vector of a direction given by 2 (planar: z = 0) or 3 exact numbers."""
+    v = sp.Matrix([sp.Rational(x.numerator, x.denominator) for x in direction] + [0] * (3 - len(direction)))
+    return sp.ImmutableMatrix(v / sp.sqrt((v.T * v)[0, 0]))
+
+
+@functools.lru_cache(maxsize=64)
+def _planar(links: tuple[Link, ...], point_masses: tuple[PointMass, ...], g: Fraction,
+            direction: tuple[Fraction, ...]) -> Chain:
+    return planar_chain(list(links), list(point_masses), gravity_parameter(g), unit_direction(direction))
+
+
+_KINDS = ("Kt", "Kv", "Ra", "gr", "Jm", "bv")
+
+
+@functools.lru_cache(maxsize=64)
+def _drives(motors: tuple[Motor, ...], frictions: tuple[Fraction, ...]
+            ) -> tuple[tuple[Actuator, ...], tuple[Parameter, ...]]:
+    acts, params = [], []
+    for i, (m, bv) in enumerate(zip(motors, frictions), 1):
+        act, ps = actuator(i, m, bv, f"link[{i}].viscous_friction")
+        acts.append(act)
+        params += ps
+    order = sorted(params, key=lambda p: _KINDS.index(p.symbol.name.rstrip("0123456789")))
+    return tuple(acts), tuple(order)
 
 
 def packaged_arms() -> tuple[str, ...]:
@@ -157,19 +212,11 @@ def load_arm(path: str | Path | None = None) -> Arm:
 
 # -- the schema ---------------------------------------------------------------------------
 
-LINK_INERTIA = Num("kg m^2, about the centre of mass", _ZERO, alternative=" or 'uniform_rod' (m l^2 / 12)")
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": "one [[link]] table per joint, base to tip",
-            "point_mass": None, "motor": "one [[motor]] table per joint",
+            "point_mass": None, "motor": None,
             "controller": "a table [controller] with T1, T2 and w", "simulation": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
-            "description": None, "gravity": None}
-LINK_KEYS = {"length": POSITIVE["m"].expected, "mass": POSITIVE["kg"].expected, "com": None,
-             "inertia": None, "viscous_friction": None}
-PM_KEYS = {"link": "the number of the link that carries it", "distance": ANY["m"].expected,
-           "mass": POSITIVE["kg"].expected, "inertia": None, "label": None}
-MOTOR_KEYS = {"torque_constant": POSITIVE["N m/A"].expected, "voltage_constant": NONNEGATIVE["V s/rad"].expected,
-              "resistance": POSITIVE["ohm"].expected, "gear_ratio": None, "rotor_inertia": None,
-              "voltage_limit": None}
+            "description": None, "gravity": None, "gravity_direction": None, "actuation": None}
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None}
 
@@ -182,98 +229,79 @@ def arm_from_dict(data: Any, source: str = "<dict>") -> Arm:
     else:
         r.bad("arm file", "a table of [arm], [[link]], [[motor]] and [controller]", data)
         top = {}
-    name, description, gravity = _head(r, top.get("arm", _MISSING))
-    links = _links(r, top.get("link", _MISSING))
+    head = _head(r, top.get("arm", _MISSING))
+    links = read_links(r, top.get("link"))
     n = None if links is None else len(links)
-    point_masses = _point_masses(r, top.get("point_mass", []), n)
-    motors = _motors(r, top.get("motor", _MISSING), n)
+    point_masses = read_point_masses(r, top.get("point_mass", []), n)
+    motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=False)
     controller = _controller(r, top.get("controller", _MISSING), n)
-    if links:
-        _last_joint_inertia(r, links, point_masses, motors)
     simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
     r.problems.extend(sim_problems if n else [])
     if r.problems:
         raise SpecError(printable(source), r.problems)
-    return Arm(name=name, description=description, gravity=gravity, links=tuple(links),
-               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
-               simulation=simulation)
+    arm = Arm(name=head.name, description=head.description, gravity=head.gravity, links=tuple(links),
+              point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
+              simulation=simulation, gravity_direction=head.direction or (Fraction(0), Fraction(-1)))
+    _moves_inertia(r, arm)
+    if r.problems:
+        raise SpecError(printable(source), r.problems)
+    return arm
 
 
-def _head(r: Reader, value: Any) -> tuple[str, str, Fraction | None]:
+@dataclass(frozen=True)
+class _Head:
+    name: str
+    description: str
+    gravity: Fraction
+    direction: tuple[Fraction, ...] | None
+    actuation: Actuation
+
+
+def _head(r: Reader, value: Any) -> _Head:
     d = None if value is _MISSING else r.table(value, "arm", ARM_KEYS, "a table [arm] with at least a name")
     if d is None:
-        return "", "", _ZERO
+        return _Head("", "", _ZERO, None, Actuation.VOLTAGE)
     name = d.get("name", "")
     if "name" in d and (found := name_check(name)):
         r.add("arm.name", found[0], found[1] if isinstance(name, str) else show(name))
-    return name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", NONNEGATIVE["m/s^2"], _ZERO)
+    return _Head(name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", NONNEGATIVE["m/s^2"], _ZERO),
+                 _direction(r, d.get("gravity_direction"), 2),
+                 actuation_value(r, d.get("actuation"), "arm.actuation", Actuation.VOLTAGE))
 
 
-def _array_of_tables(r: Reader, value: Any, field: str) -> list | None:
-    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        r.bad(field, f"an array of tables ([[{field}]] sections)", value)
+def _direction(r: Reader, value: Any, size: int) -> tuple[Fraction, ...] | None:
+    """gravity_direction: ``size`` finite numbers, not all zero (None: not given)."""
+    if value is None:
         return None
-    return value
-
-
-def _links(r: Reader, value: Any) -> list[Link] | None:
-    """The links, or None when the number of joints is unknown."""
-    if value is _MISSING or (entries := _array_of_tables(r, value, "link")) is None:
+    field = "arm.gravity_direction"
+    what = ("[x, y], the direction of free fall in the base xy plane (e.g. [0, 1] for a ceiling-mounted "
+            "arm)" if size == 2 else "[x, y, z], the direction of free fall in the base frame")
+    if not isinstance(value, list) or len(value) != size:
+        r.bad(field, f"an array of {size} numbers {what}", value)
         return None
-    if not entries:
-        r.add("link", "at least one [[link]] table (n >= 1 joints)", "an empty array (0 links)")
+    entries = [r.value(x, f"{field}[{i}]", ANY[""]) for i, x in enumerate(value, 1)]
+    if None in entries:
         return None
-    links = []
-    for i, entry in enumerate(entries, 1):
-        f = f"link[{i}]"
-        d = r.table(entry, f, LINK_KEYS, "a table")
-        length = r.number(d, "length", f, POSITIVE["m"])
-        mass = r.number(d, "mass", f, POSITIVE["kg"])
-        com = r.number(d, "com", f, ANY["m"], None if length is None else length / 2)
-        rod = d.get("inertia", UNIFORM_ROD)
-        if isinstance(rod, str) and rod == UNIFORM_ROD:
-            inertia = None if mass is None or length is None else mass * length ** 2 / 12
-        else:
-            inertia = r.value(rod, f"{f}.inertia", LINK_INERTIA)
-        friction = r.number(d, "viscous_friction", f, NONNEGATIVE["N m s/rad"], _ZERO)
-        links.append(Link(length, mass, com, inertia, friction))
-    return links
+    if all(x == 0 for x in entries):
+        r.bad(field, f"a non-zero direction {what}", value)
+        return None
+    return tuple(entries)
 
 
-def _point_masses(r: Reader, value: Any, n: int | None) -> list[PointMass]:
-    out = []
-    for i, entry in enumerate(_array_of_tables(r, value, "point_mass") or [], 1):
-        f = f"point_mass[{i}]"
-        d = r.table(entry, f, PM_KEYS, "a table")
-        link = d.get("link")
-        ok = (isinstance(link, numbers.Integral) and not isinstance(link, bool)
-              and 1 <= link <= (n if n is not None else link))
-        if "link" in d and not ok:
-            r.bad(f"{f}.link", f"a link number from 1 to {n}" if n else "a link number >= 1", link)
-        out.append(PointMass(int(link) - 1 if ok else -1, r.number(d, "distance", f, ANY["m"]),
-                             r.number(d, "mass", f, POSITIVE["kg"]),
-                             r.number(d, "inertia", f, NONNEGATIVE["kg m^2"], _ZERO), r.text(d, "label", f)))
-    return out
-
-
-def _motors(r: Reader, value: Any, n: int | None) -> list[Motor]:
-    if value is _MISSING or (entries := _array_of_tables(r, value, "motor")) is None:
-        return []
-    if n is not None and len(entries) != n:
-        r.add("motor", f"one [[motor]] table per joint: {n}, as many as [[link]]",
-              f"{len(entries)} [[motor]] table{'' if len(entries) == 1 else 's'}")
-    out = []
-    for i, entry in enumerate(entries, 1):
-        f = f"motor[{i}]"
-        d = r.table(entry, f, MOTOR_KEYS, "a table")
-        out.append(Motor(
-            torque_constant=r.number(d, "torque_constant", f, POSITIVE["N m/A"]),
-            voltage_constant=r.number(d, "voltage_constant", f, NONNEGATIVE["V s/rad"]),
-            resistance=r.number(d, "resistance", f, POSITIVE["ohm"]),
-            gear_ratio=r.number(d, "gear_ratio", f, POSITIVE[""], Fraction(1)),
-            rotor_inertia=r.number(d, "rotor_inertia", f, NONNEGATIVE["kg m^2"], _ZERO),
-            voltage_limit=r.number(d, "voltage_limit", f, POSITIVE["V"])))
-    return out
+def _moves_inertia(r: Reader, arm: Arm) -> None:
+    """Every joint must move some inertia at q = 0, else J is singular (issue 10, item 7)."""
+    values = {p.symbol: p.rational for p in arm.parameters}
+    found = unmoved_joint(arm.chain, [a.reflected_inertia for a in arm.actuators], values)
+    if found is None:
+        return
+    i, everywhere = found
+    k = i + 1
+    joint = arm.chain.joints[i]
+    moved = "a mass" if not joint.type.rotates else f"an inertia about joint {k}"
+    r.add(joint.field, f"{moved} > 0 at every configuration (else J(theta) is singular): mass beyond joint {k} "
+          f"away from its axis, a link inertia > 0 or a rotor_inertia > 0",
+          "0 (nothing beyond the joint has inertia about its axis" + (")" if everywhere else
+          " at theta = 0, where J is singular)"))
 
 
 def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
@@ -347,28 +375,3 @@ def _matrix(r: Reader, value: Any, n: int | None) -> tuple[tuple[Fraction, ...],
               f"the singular matrix {inline(value)} (det C = 0)")
         return identity
     return tuple(tuple(row) for row in rows)
-
-
-def _last_joint_inertia(r: Reader, links: list[Link], point_masses: list[PointMass],
-                        motors: list[Motor]) -> None:
-    """The last joint must move some inertia, else J(theta) is singular for every theta.
-
-    (An inner joint with nothing on its own link is a legitimate model: the
-    links beyond it move, and J can stay positive definite.)
-    """
-    n, link = len(links), links[-1]
-    if None in (link.mass, link.com, link.inertia) or any(p.link == -1 for p in point_masses):
-        return
-    total = link.inertia + link.mass * link.com ** 2
-    for p in (p for p in point_masses if p.link == n - 1):
-        if None in (p.mass, p.distance, p.inertia):
-            return
-        total += p.inertia + p.mass * p.distance ** 2
-    if len(motors) == n:
-        if None in (motors[-1].rotor_inertia, motors[-1].gear_ratio):
-            return
-        total += motors[-1].rotor_inertia * motors[-1].gear_ratio ** 2
-    if total == 0:
-        r.add(f"link[{n}]", f"an inertia about joint {n} > 0 (else J(theta) is singular): a com away "
-              "from the joint, an inertia > 0, a point mass away from the joint or a rotor_inertia > 0",
-              "0 kg m^2 (com = 0 and inertia = 0, nothing else on the last link)")

@@ -56,7 +56,7 @@ class Plant:
         self.coulomb = np.array(s.coulomb_friction)
         self.viscous = np.array(s.viscous_friction)
         self.d = np.array(s.disturbance)
-        self.u_max = np.array([float(m.voltage_limit) if m.voltage_limit else math.inf for m in arm.motors])
+        self.u_max = np.array([float(m.input_limit) if m.input_limit else math.inf for m in arm.motors])
         self._n2 = n * n
 
     def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -93,7 +93,7 @@ def run(d: Derivation, backend: Backend, plant: Plant, s: SimSettings, name: str
     """Simulate one controller variant (see VARIANTS) for ``s.duration`` seconds."""
     form, protected = VARIANTS[name]
     n, dt = d.n, s.sample_time
-    limits = [float(m.voltage_limit) if (m.voltage_limit and protected) else 0.0 for m in d.arm.motors]
+    limits = [float(m.input_limit) if (m.input_limit and protected) else 0.0 for m in d.arm.motors]
     ctl = backend.controller(form, limits)
     steps = int(round(s.duration / dt))
     amp = math.radians(s.amplitude_deg)

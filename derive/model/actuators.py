@@ -1,0 +1,173 @@
+"""The drives of an arm's joints: ``[[motor]]`` tables -> :class:`Motor` and :class:`Actuator`.
+
+Every joint i has one drive, with input u_i (eq. 12: J theta'' + G = B (u + d)):
+
+* ``actuation = "voltage"`` (the paper's DC motor, armature inductance
+  neglected, section 5.1): tau_i = gr Kt (u_i - gr Kv theta_i') / Ra, so
+  B_ii = gr Kt / Ra and the back-EMF adds gr^2 Kt Kv / Ra to the damping;
+  u_i in V.
+* ``actuation = "torque"`` (section 4.1 allows u to be a torque; a
+  torque-controlled arm such as the Panda): tau_i = gr u_i, B_ii = gr, no
+  back-EMF; u_i is the motor torque in N m (the joint torque when gr = 1).
+
+Both add the joint's viscous friction bv to the damping and reflect the rotor
+inertia Jm onto J_ii as gr^2 Jm (the rotor's gyroscopic coupling with the
+carrying link is neglected). An :class:`Actuator` holds these three terms as
+SymPy expressions in parameter symbols; the dynamics (``derive.dynamics``)
+read B = diag(gain), G += diag(damping) theta', J += diag(reflected_inertia).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from fractions import Fraction
+from typing import Any
+
+import sympy as sp
+
+from derive.model.chain import Parameter
+from derive.model.fields import NONNEGATIVE, POSITIVE, Num, Reader
+
+_ZERO = Fraction(0)
+
+
+class Actuation(str, Enum):
+    """What the controller's output u drives."""
+
+    VOLTAGE = "voltage"   # a DC motor's armature voltage [V]
+    TORQUE = "torque"     # a motor torque [N m] (joint torque / gear ratio)
+
+
+@dataclass(frozen=True)
+class Motor:
+    """One ``[[motor]]`` table as read (exact values; None: not given / not used).
+
+    Voltage actuation: tau = gear Kt (V - gear Kv dtheta) / R (eq. 11-12 with
+    voltage input); torque actuation: tau = gear u.
+    """
+
+    torque_constant: Fraction | None
+    voltage_constant: Fraction | None
+    resistance: Fraction | None
+    gear_ratio: Fraction
+    rotor_inertia: Fraction
+    voltage_limit: Fraction | None
+    actuation: Actuation = Actuation.VOLTAGE
+    torque_limit: Fraction | None = None
+    viscous_friction: Fraction | None = None   # of the joint, for arms without [[link]] tables
+
+    @property
+    def input_limit(self) -> Fraction | None:
+        """The bound on |u| (V for voltage, N m for torque actuation), None: none."""
+        return self.voltage_limit if self.actuation is Actuation.VOLTAGE else self.torque_limit
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """The drive of one joint, in parameter symbols (eq. 12).
+
+    gain: B_ii [N m/V or 1]; damping: the joint's viscous damping including
+    back-EMF [N m s/rad]; reflected_inertia: gr^2 Jm added to J_ii [kg m^2];
+    limit: the bound on |u_i| (None: none); field: the arm-file table.
+    """
+
+    actuation: Actuation
+    gain: sp.Expr
+    damping: sp.Expr
+    reflected_inertia: sp.Expr
+    limit: Fraction | None
+    field: str
+
+
+def _sym(name: str, **assumptions: bool) -> sp.Symbol:
+    return sp.Symbol(name, **assumptions)
+
+
+def actuator(i: int, motor: Motor, friction: Fraction, friction_field: str,
+             friction_doc: str = "") -> tuple[Actuator, tuple[Parameter, ...]]:
+    """Joint i's (1-based) actuator and its parameters, named as the generated code
+    names them (Kt1, Kv1, Ra1, gr1, Jm1, bv1)."""
+    f = f"motor[{i}]"
+    pos, nonneg = {"positive": True}, {"nonnegative": True}
+
+    def param(name: str, value: Fraction, unit: str, field: str, doc: str, **assume: bool) -> Parameter:
+        return Parameter(_sym(f"{name}{i}", **assume), value, unit, field, doc)
+
+    gr = param("gr", motor.gear_ratio, "", f"{f}.gear_ratio", f"gear ratio of motor {i}", **pos)
+    Jm = param("Jm", motor.rotor_inertia, "kg m^2", f"{f}.rotor_inertia", f"rotor inertia of motor {i}", **nonneg)
+    bv = param("bv", friction, "N m s/rad", friction_field, friction_doc or f"viscous friction of joint {i}", **nonneg)
+    if motor.actuation is Actuation.VOLTAGE:
+        Kt = param("Kt", motor.torque_constant, "N m/A", f"{f}.torque_constant", f"torque constant of motor {i}", **pos)
+        Kv = param("Kv", motor.voltage_constant, "V s/rad", f"{f}.voltage_constant",
+                   f"voltage constant of motor {i}", **nonneg)
+        Ra = param("Ra", motor.resistance, "ohm", f"{f}.resistance", f"armature resistance of motor {i}", **pos)
+        g, kt, kv, ra, jm, b = gr.symbol, Kt.symbol, Kv.symbol, Ra.symbol, Jm.symbol, bv.symbol
+        act = Actuator(Actuation.VOLTAGE, g * kt / ra, g ** 2 * kt * kv / ra + b, g ** 2 * jm,
+                       motor.input_limit, f)
+        return act, (Kt, Kv, Ra, gr, Jm, bv)
+    g, jm, b = gr.symbol, Jm.symbol, bv.symbol
+    return Actuator(Actuation.TORQUE, g, b, g ** 2 * jm, motor.input_limit, f), (gr, Jm, bv)
+
+
+# -- reading [[motor]] ----------------------------------------------------------------------
+
+ACTUATION_EXPECTED = "'voltage' (a DC motor, u in V) or 'torque' (u a motor torque in N m)"
+VOLTAGE_KEYS = {"torque_constant": POSITIVE["N m/A"].expected, "voltage_constant": NONNEGATIVE["V s/rad"].expected,
+                "resistance": POSITIVE["ohm"].expected, "gear_ratio": None, "rotor_inertia": None,
+                "voltage_limit": None, "actuation": None}
+TORQUE_KEYS = {"gear_ratio": None, "rotor_inertia": None, "torque_limit": None, "actuation": None}
+_TORQUE_LIMIT = Num("N m", _ZERO, True)
+
+
+def actuation_value(r: Reader, value: Any, field: str, default: Actuation) -> Actuation:
+    if value is None:
+        return default
+    try:
+        return Actuation(value)
+    except (ValueError, TypeError):
+        r.bad(field, ACTUATION_EXPECTED, value)
+        return default
+
+
+def read_motor(r: Reader, entry: Any, i: int, default: Actuation, joint_friction: bool) -> Motor:
+    """One ``[[motor]]`` table; ``joint_friction``: the table may hold the joint's
+    viscous_friction (arms whose joints have no [[link]] table)."""
+    f = f"motor[{i}]"
+    kind = actuation_value(r, entry.get("actuation") if isinstance(entry, dict) else None,
+                           f"{f}.actuation", default)
+    keys = dict(VOLTAGE_KEYS if kind is Actuation.VOLTAGE else TORQUE_KEYS)
+    if joint_friction:
+        keys["viscous_friction"] = None
+    d = r.table(entry, f, keys, "a table") or {}
+    friction = r.number(d, "viscous_friction", f, NONNEGATIVE["N m s/rad"]) if joint_friction else None
+    gear = r.number(d, "gear_ratio", f, POSITIVE[""], Fraction(1))
+    rotor = r.number(d, "rotor_inertia", f, NONNEGATIVE["kg m^2"], _ZERO)
+    if kind is Actuation.TORQUE:
+        return Motor(None, None, None, gear, rotor, None, kind,
+                     r.number(d, "torque_limit", f, _TORQUE_LIMIT), friction)
+    return Motor(torque_constant=r.number(d, "torque_constant", f, POSITIVE["N m/A"]),
+                 voltage_constant=r.number(d, "voltage_constant", f, NONNEGATIVE["V s/rad"]),
+                 resistance=r.number(d, "resistance", f, POSITIVE["ohm"]),
+                 gear_ratio=gear, rotor_inertia=rotor,
+                 voltage_limit=r.number(d, "voltage_limit", f, POSITIVE["V"]), actuation=kind,
+                 viscous_friction=friction)
+
+
+def read_motors(r: Reader, value: Any, n: int | None, default: Actuation, joint_friction: bool,
+                joints: str = "[[link]]") -> list[Motor]:
+    """The ``[[motor]]`` tables, one per joint. Torque-actuated arms may leave
+    them out: then every joint has gear ratio 1, no rotor inertia and no limit."""
+    if value is None:
+        if default is Actuation.TORQUE and n is not None:
+            return [Motor(None, None, None, Fraction(1), _ZERO, None, Actuation.TORQUE) for _ in range(n)]
+        r.add("motor", f"one [[motor]] table per joint (voltage actuation; 'actuation = \"torque\"' "
+              "under [arm] makes them optional)", "nothing (the key is missing)")
+        return []
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        r.bad("motor", "an array of tables ([[motor]] sections)", value)
+        return []
+    if n is not None and len(value) != n:
+        r.add("motor", f"one [[motor]] table per joint: {n}, as many as {joints}",
+              f"{len(value)} [[motor]] table{'' if len(value) == 1 else 's'}")
+    return [read_motor(r, entry, i, default, joint_friction) for i, entry in enumerate(value, 1)]
+

@@ -1,6 +1,7 @@
 """Predictive gains (eq. 14-19), observer (eq. 21-25) and the PID form (eq. 27-38)."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -111,11 +112,10 @@ def test_eq22_dhat_and_eq27_composite_law(paper):
 @pytest.mark.parametrize("arm", packaged_arms())
 def test_derive_show_prints_every_attribute_of_each_packaged_arm(arm):
     out = subprocess.run([sys.executable, "-m", "derive", "show", arm], capture_output=True, text=True,
-                         timeout=120)
+                         encoding="utf-8", timeout=120, env={**os.environ, "PYTHONIOENCODING": "utf-8"})
     assert out.returncode == 0, out.stderr
-    for name in ("J(theta)", "G(theta, dtheta)", "K1", "K2", "P(theta)", "D(theta)", "N(theta, dtheta)",
-                 "dhat(0)"):
-        assert name in out.stdout
+    for name in ("J(θ)", "G(θ, θ̇)", "K1", "K2", "P(θ)", "D(θ)", "N(θ, θ̇)", "d̂(0)"):
+        assert f"\n{name}   " in out.stdout
     assert "Traceback" not in out.stderr
 
 
@@ -123,4 +123,5 @@ def test_derive_show_latex_of_the_default_arm():
     out = subprocess.run([sys.executable, "-m", "derive", "show", "--latex"], capture_output=True,
                          text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert r"\cos{\left(\theta_{2} \right)}" in out.stdout and out.stdout.count(r"\[") >= 15
+    assert r"0.179297 + 0.0810084 \cos{\left(\theta_{2} \right)}" in out.stdout
+    assert out.stdout.count(r"\label{derive:glasgow_2link:") >= 15

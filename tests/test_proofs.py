@@ -239,23 +239,56 @@ def test_write_text_failure_is_an_emit_error(tmp_path):
         check_render.write_text(tmp_path / "missing" / "x.json", "{}")
 
 
-def test_cli_check_default_arm_writes_json_and_report(tmp_path):
+def _cli_check(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "derive", "check", *args], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)})
+
+
+def test_cli_check_paper_writes_json_and_report_without_an_arm(tmp_path):
+    """The printed equations are decided once, in generic symbols: no arm's value in any counterexample."""
     out_json, out_md = tmp_path / "check.json", tmp_path / "check.md"
-    proc = subprocess.run([sys.executable, "-m", "derive", "check", "--json", str(out_json), "--report", str(out_md)],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "PYTHONPATH": str(REPO)})
+    proc = _cli_check(tmp_path, "--paper", "--json", str(out_json), "--report", str(out_md))
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     doc = json.loads(out_json.read_text(encoding="utf-8"))
-    assert doc["seconds"] < 60 and doc["exit_code"] == 0
+    assert doc["seconds"] < 60 and doc["exit_code"] == 0 and doc["arm"] is None
     obs = {o["id"]: o for o in doc["obligations"]}
+    assert {o["kind"] for o in obs.values()} == {"paper"} and len(obs) == 22
     assert {"id", "paper_ref", "status", "detail", "corrected"} <= set(obs["eq31"])
     assert obs["eq31"]["status"] == "refuted" and "K2 e(0)" in obs["eq31"]["corrected"]
+    assert "this arm has" not in obs["eq31"]["detail"]
     assert obs["eq31"]["counterexample"]["lhs_float"] != obs["eq31"]["counterexample"]["rhs_float"]
+    assert all(not o["counterexample"]["from_arm"] for o in obs.values() if o["counterexample"])
     assert {k for k, o in obs.items() if o["status"] == "refuted"} == ERRATA
-    assert all(o["status"] == "proved" for o in obs.values() if o["kind"] == "project")
     assert obs["theorem1"]["paper_ref"] == "theorem 1" and obs["theorem1"]["corrected"] is None
     report = out_md.read_text(encoding="utf-8")
+    assert report.startswith("# derive check: the paper\n")
     assert "| `eq31` | eq. 31-32 | paper | **refuted** |" in report and "$$" in report
-    assert "eq31" in proc.stdout and "w1/X = 24.6888 rad/s" in proc.stdout
+    assert proc.stdout.startswith("derive check --paper (the paper's printed equations): 22 obligations: "
+                                  "17 proved, 5 refuted (5 errata in the paper), 0 unproven, 0 n/a")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["check.json", "check.md"]
+
+
+def test_cli_check_arm_runs_only_its_own_obligations(tmp_path):
+    """derive check ARM: the project obligations (the paper's are arm-independent: --paper)."""
+    out_json = tmp_path / "check.json"
+    proc = _cli_check(tmp_path, str(REPO / "tests" / "data" / "my3.toml"), "--json", str(out_json))
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(out_json.read_text(encoding="utf-8"))
+    assert (doc["arm"], doc["n"], doc["exit_code"]) == ("my3", 3, 0)
+    obs = {o["id"]: o for o in doc["obligations"]}
+    assert {o["kind"] for o in obs.values()} == {"project"} and len(obs) == 10
+    assert obs["theorem2-arm"]["status"] == "n/a"
+    assert "the printed (31) is not this arm's dhat(0) (K2 = 25/2 I;" in obs["dhat0"]["detail"]
+    assert proc.stdout.startswith("derive check my3 (3 joints): 10 obligations: 9 proved, 0 refuted, "
+                                  "0 unproven, 1 n/a")
+    assert "derive check --paper decides them" in proc.stdout
+
+
+def test_check_without_an_arm_runs_the_paper_obligations_generically():
+    """check(None) selects the paper's obligations; an arm-dependent remark needs an arm."""
+    from derive.proofs import paper_claims
+
+    assert paper_claims.paper_base(None) == {}
+    out = paper_claims.check_eq31(None)
+    assert out.status is Status.REFUTED and "this arm" not in out.detail

@@ -1,9 +1,12 @@
-"""``derive check [ARM] [--report FILE.md] [--json FILE]``: the paper's claims as proof obligations.
+"""``derive check [ARM] [--paper] [--report FILE.md] [--json FILE]``: the paper's claims as proof obligations.
 
-Runs every obligation (:mod:`derive.proofs.project`, :mod:`derive.proofs.arm`:
-the project's own derivation; :mod:`derive.proofs.paper_claims`,
-:mod:`derive.proofs.observer`: the paper's equations as printed), prints the
-table, and writes the Markdown report and the JSON record on request.
+``derive check ARM`` runs the obligations about the arm's own derivation
+(:mod:`derive.proofs.project`, :mod:`derive.proofs.arm`, kind ``project``);
+``derive check --paper`` decides the paper's printed equations
+(:mod:`derive.proofs.paper_claims`, :mod:`derive.proofs.observer`, kind
+``paper``) once, in generic symbols: they do not depend on the arm, so they
+are not re-checked for every arm. Both together: ``derive check ARM --paper``.
+Prints the table, and writes the Markdown report and the JSON record on request.
 
 Exit code: 0 when every project obligation is proved (or does not apply to
 the arm) and no printed equation is left undecided; a refuted printed equation
@@ -23,29 +26,45 @@ if TYPE_CHECKING:
     from derive.control.pipeline import Derivation
 
 
-def obligations() -> tuple[Obligation, ...]:
-    """Every obligation, in reading order: the project's derivation first, then the paper."""
+def project_obligations() -> tuple[Obligation, ...]:
+    """The obligations about an arm's derivation (kind ``project``), in reading order."""
     from derive.proofs import arm as proofs_arm
-    from derive.proofs import observer as proofs_observer
-    from derive.proofs import paper_claims as proofs_paper
     from derive.proofs import project as proofs_project
 
-    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS, *proofs_paper.OBLIGATIONS,
-            *proofs_observer.OBLIGATIONS)
+    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS)
 
 
-def check(d: Derivation, selected: tuple[Obligation, ...] | None = None) -> tuple[Result, ...]:
-    """Run the obligations on a Derivation."""
+def paper_obligations() -> tuple[Obligation, ...]:
+    """The paper's printed equations (kind ``paper``, arm-independent), in reading order."""
+    from derive.proofs import observer as proofs_observer
+    from derive.proofs import paper_claims as proofs_paper
+
+    return (*proofs_paper.OBLIGATIONS, *proofs_observer.OBLIGATIONS)
+
+
+def obligations() -> tuple[Obligation, ...]:
+    """Every obligation, in reading order: the project's derivation first, then the paper."""
+    return (*project_obligations(), *paper_obligations())
+
+
+def check(d: Derivation | None, selected: tuple[Obligation, ...] | None = None) -> tuple[Result, ...]:
+    """Run the obligations (default: all) on a Derivation; ``None`` runs the paper's
+    obligations in generic symbols (an arm only seeds their counterexample search)."""
     from derive.proofs.core import run as run_all
 
-    return run_all(obligations() if selected is None else selected, d)
+    if selected is None:
+        selected = obligations() if d is not None else paper_obligations()
+    return run_all(selected, d)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLI: derive check [ARM] [--report FILE.md] [--json FILE]."""
+    """CLI: derive check [ARM] [--paper] [--report FILE.md] [--json FILE]."""
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
+    parser.add_argument("--paper", action="store_true",
+                        help="check the paper's printed equations (arm-independent, about 15 s of CPU); "
+                             "alone, or with ARM as well as the arm's obligations")
     parser.add_argument("--report", metavar="FILE.md", type=Path,
                         help="write the table and the derivations as Markdown with LaTeX")
     parser.add_argument("--json", metavar="FILE", type=Path,
@@ -53,19 +72,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Derive the arm, check every obligation, report; the exit code of the module docstring."""
+    """Derive the arm, check its obligations (and the paper's with --paper), report;
+    the exit code of the module docstring."""
     from derive.proofs.report import render_json, render_markdown, render_text, write_text
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
     from derive.model.spec import load_arm
 
     start = time.perf_counter()
-    d = derive(load_arm(args.arm))
-    report_warnings(d)
-    results = check(d)
+    d = None
+    results: tuple[Result, ...] = ()
+    if args.arm is not None or not args.paper:
+        d = derive(load_arm(args.arm))
+        report_warnings(d)
+        results = check(d, project_obligations())
+    if args.paper:
+        results += check(None, paper_obligations())
     seconds = time.perf_counter() - start
     code = exit_code(results)
-    sys.stdout.write(render_text(d, results, seconds, code))
+    sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))
     if args.report is not None:
         write_text(args.report, render_markdown(d, results, seconds, code))
     if args.json is not None:

@@ -2,7 +2,10 @@
 
 Each check transcribes the equation as printed (:mod:`derive.proofs.paper`) and
 compares it with what follows from the equations it cites; a refuted one is an
-erratum, reported with the statement that holds. Section 4.2 and the proof of
+erratum, reported with the statement that holds. The checks are arm-independent
+(generic two-link symbols): ``check(None)`` decides them once (``derive check
+--paper``); given an arm, its values only seed the counterexample search and
+never change a status. Section 4.2 and the proof of
 theorem 2 are in :mod:`derive.proofs.observer`.
 """
 from __future__ import annotations
@@ -22,9 +25,10 @@ T1, T2 = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
 GAP = sp.Symbol("h", positive=True)   # T2 = T1 + h: the hypothesis T1 < T2 as a sign fact
 
 
-def paper_base(d: Derivation) -> dict:
-    """The arm's values for the paper's generic symbols (n = 2), used for counterexamples."""
-    if d.n != 2 or d.lumped is None:
+def paper_base(d: Derivation | None) -> dict:
+    """The arm's values for the paper's generic symbols (n = 2), used for counterexamples
+    ({} without an arm)."""
+    if d is None or d.n != 2 or d.lumped is None:
         return {}
     P = pp.paper()
     S = P.syms
@@ -66,7 +70,7 @@ def minimiser() -> tuple[sp.Matrix, sp.Matrix, sp.Expr, bool]:
     return K1, K2, sp.factor(hess[0, 0]), exact
 
 
-def check_eq16_18(d: Derivation) -> Outcome:
+def check_eq16_18(d: Derivation | None) -> Outcome:
     """K1 = Tbar33^-1 Tbar31, K2 = Tbar33^-1 Tbar32 (eq. 16-19) are the minimiser of (14)."""
     K1, K2, h, exact = minimiser()
     printed = [tbar(3, 1) / tbar(3, 3) * sp.eye(2), tbar(3, 2) / tbar(3, 3) * sp.eye(2)]
@@ -83,7 +87,7 @@ def check_eq16_18(d: Derivation) -> Outcome:
     return combine([first, convex], summary="the printed K1, K2 are the minimiser of (14), derived for symbolic 0 <= T1 < T2")
 
 
-def check_eq15(d: Derivation) -> Outcome:
+def check_eq15(d: Derivation | None) -> Outcome:
     """u* of (15) makes y'' = C J^-1 (B u* - G) equal y_d'' + K1 e + K2 e' (the minimiser; d = 0)."""
     P = pp.paper()
     yddot = P.C * P.Ji * (P.B * pp.eq15_ustar(P) - P.G)
@@ -94,7 +98,7 @@ def check_eq15(d: Derivation) -> Outcome:
                  refuted="(15) does not realise the minimiser of (14)")
 
 
-def check_theorem1(d: Derivation) -> Outcome:
+def check_theorem1(d: Derivation | None) -> Outcome:
     """Theorem 1: e'' + K2 e' + K1 e = 0 is exponentially stable for all 0 <= T1 < T2 (Routh-Hurwitz)."""
     k1, k2 = (sp.cancel(tbar(3, j) / tbar(3, 3)) for j in (1, 2))
     parts = []
@@ -127,7 +131,7 @@ def _dhat_rate(P: pp.Paper, u: pp.Mat) -> pp.Mat:
     return F.d_dt(pp.eq22_dhat(P), rates)
 
 
-def check_eq28(d: Derivation) -> Outcome:
+def check_eq28(d: Derivation | None) -> Outcome:
     """Each printed line of (28) equals d/dt dhat along (21) (theta'' free)."""
     P = pp.paper()
     truth = _dhat_rate(P, P.v("u"))
@@ -135,7 +139,7 @@ def check_eq28(d: Derivation) -> Outcome:
                  what="d/dt of (22) along (21)")
 
 
-def check_eq29(d: Derivation) -> Outcome:
+def check_eq29(d: Derivation | None) -> Outcome:
     """Each printed line of (29) equals d/dt dhat along (21) with u = u* - dhat (27)."""
     P = pp.paper()
     truth = _dhat_rate(P, pp.composite_u(P))
@@ -148,7 +152,7 @@ def check_eq29(d: Derivation) -> Outcome:
                  latex=fix)
 
 
-def check_eq30(d: Derivation) -> Outcome:
+def check_eq30(d: Derivation | None) -> Outcome:
     """(30) is the integral of (29): same derivative and value dhat(0) at t = 0."""
     P = pp.paper()
     F = P.F
@@ -167,14 +171,14 @@ def check_eq30(d: Derivation) -> Outcome:
     return combine([first, second], summary="(30) is the integral of (29): same derivative, value dhat(0) at t = 0")
 
 
-def check_eq31(d: Derivation) -> Outcome:
+def check_eq31(d: Derivation | None) -> Outcome:
     """With dhat(0) of (31) as printed, (30) becomes (32)."""
     P = pp.paper()
     with31 = pp.eq30(P, P.v("e"), P.v("de"), P.v("int_e"), pp.eq31_dhat0(P))
     fixed = pp.eq30(P, P.v("e"), P.v("de"), P.v("int_e"), pp.derived_dhat0(P))
     ok = P.F.is_zero(fixed - pp.eq32(P))
     gap = P.F.is_zero(with31 - pp.eq32(P) - P.M * (P.K2 - P.F.eye(2)) * P.v("e0"))
-    k2 = d.K2[0, 0] if d.K2.is_diagonal() else None
+    k2 = d.K2[0, 0] if d is not None and d.K2.is_diagonal() else None
     note = f"; this arm has K2 = {k2} I" + (" = I, so (31) happens to hold here" if k2 == 1 else "") if k2 is not None else ""
     out = equal(P.F, with31, pp.eq32(P), base=paper_base(d), labels=("(30) with (31)", "(32)"),
                 proved="(31) turns (30) into (32)",
@@ -188,7 +192,7 @@ def check_eq31(d: Derivation) -> Outcome:
     return out
 
 
-def check_eq33(d: Derivation) -> Outcome:
+def check_eq33(d: Derivation | None) -> Outcome:
     """(33) = u* of (15) - dhat of (32)."""
     P = pp.paper()
     u = pp.eq15_ustar(P) - pp.eq32(P)
@@ -196,7 +200,7 @@ def check_eq33(d: Derivation) -> Outcome:
                  proved="(33) equals u* of (15) minus dhat of (32)", refuted="(33) is not u* - dhat")
 
 
-def check_eq34_38(d: Derivation) -> Outcome:
+def check_eq34_38(d: Derivation | None) -> Outcome:
     """(34) with the printed gains (35)-(38) equals (33)."""
     P = pp.paper()
     return equal(P.F, pp.eq34(P), pp.eq33(P), base=paper_base(d), labels=("(34) with (35-38)", "(33)"),
@@ -210,7 +214,7 @@ def _loop_ddtheta(P: pp.Paper) -> pp.Mat:
     return pp.eq12_ddtheta(P, pp.composite_u(P), P.v("d"))
 
 
-def check_eq41(d: Derivation) -> Outcome:
+def check_eq41(d: Derivation | None) -> Outcome:
     """(41) as printed, J theta'' + G = B (u* - e1), against (12), (27), (39)."""
     P = pp.paper()
     truth = P.B * (pp.composite_u(P) + P.v("d"))      # J theta'' + G = B (u + d), u = u* - dhat
@@ -222,7 +226,7 @@ def check_eq41(d: Derivation) -> Outcome:
                  latex=(r"J\ddot\theta + G = B(u + d) = B(u^* - \hat d + d) = B(u^* + e_1)",))
 
 
-def check_eq42(d: Derivation) -> Outcome:
+def check_eq42(d: Derivation | None) -> Outcome:
     """Both lines of (42) along the loop (12), (15), (21), (22), (27) with a constant d."""
     P = pp.paper()
     F = P.F
@@ -239,7 +243,7 @@ def check_eq42(d: Derivation) -> Outcome:
     return combine([first, second], summary="both lines of (42) hold along (12), (15), (21), (27)")
 
 
-def check_a14(d: Derivation) -> Outcome:
+def check_a14(d: Derivation | None) -> Outcome:
     """The second block of (a14) as printed against e'' from (42)."""
     P = pp.paper()
     truth = pp.tracking_dde(P, _loop_ddtheta(P))

@@ -199,7 +199,13 @@ def check_dhat0(d: Derivation) -> Outcome:
     second = equal(F, F.matrix(with0), F.matrix(eq32), labels=("(30) with derived dhat(0)", "(32)"),
                    proved="with the derived dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)), (30) is (32)",
                    refuted="the derived dhat(0) does not turn (30) into (32)")
-    return combine([first, second], summary="derived (30) is printed (30); derived dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)) gives (32)")
+    printed31 = -M * de0 - M * e0
+    same = F.is_zero(F.matrix(printed31 - d.dhat0))
+    k2 = f"K2 = {d.K2[0, 0]} I" if d.K2 == d.K2[0, 0] * sp.eye(n) else "K2"
+    third = Outcome(Status.PROVED, f"the printed (31) {'is' if same else 'is not'} this arm's dhat(0) ({k2}; "
+                    "(31) holds only if K2 = I: derive check --paper, eq31)")
+    return combine([first, second, third],
+                   summary="derived (30) is printed (30); derived dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)) gives (32)")
 
 
 def check_pid(d: Derivation) -> Outcome:

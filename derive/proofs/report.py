@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import sympy as sp
 
 from derive.errors import EmitError
-from derive.proofs.core import Counterexample, Result, Status
+from derive.proofs.core import Counterexample, Kind, Result, Status
 
 if TYPE_CHECKING:
     from derive.control.pipeline import Derivation
@@ -32,23 +32,33 @@ def _summary(results: Sequence[Result]) -> str:
     """Counts by status."""
     count = {s: sum(r.outcome.status is s for r in results) for s in Status}
     errata = sum(r.erratum for r in results)
-    return (f"{len(results)} obligations: {count[Status.PROVED]} proved, {count[Status.REFUTED]} refuted "
-            f"({errata} errata in the paper), {count[Status.UNPROVEN]} unproven, {count[Status.NOT_APPLICABLE]} n/a")
+    printed = any(r.obligation.kind is Kind.PAPER for r in results)
+    return (f"{len(results)} obligations: {count[Status.PROVED]} proved, {count[Status.REFUTED]} refuted"
+            + (f" ({errata} errata in the paper)" if printed else "")
+            + f", {count[Status.UNPROVEN]} unproven, {count[Status.NOT_APPLICABLE]} n/a")
 
 
 def _verdict(code: int) -> str:
     """What the exit code means."""
-    return ("exit 0: every obligation about the project's derivation is proved" if code == 0 else
+    return ("exit 0: every obligation about the project's derivation is proved and every printed equation "
+            "is decided" if code == 0 else
             "exit 1: an obligation about the project's derivation is not proved, or a printed equation is undecided")
 
 
-def render_text(d: Derivation, results: Sequence[Result], seconds: float, code: int) -> str:
-    """The table (obligation, paper ref, kind, status, one-line detail), then errata, failures, evidence."""
+def _title(d: Derivation | None) -> str:
+    """What was checked: an arm, or the paper's printed equations alone."""
+    return f"{d.arm.name} ({d.n} joints)" if d is not None else "--paper (the paper's printed equations)"
+
+
+def render_text(d: Derivation | None, results: Sequence[Result], seconds: float, code: int,
+                paper: bool = True) -> str:
+    """The table (obligation, paper ref, kind, status, one-line detail), then errata, failures,
+    evidence; without ``paper`` a pointer to ``derive check --paper``."""
     rows = [("obligation", "paper ref", "kind", "status", "detail")]
     rows += [(r.obligation.id, r.obligation.paper_ref, r.obligation.kind.value, r.outcome.status.value,
               _one_line(r.outcome.headline)) for r in results]
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
-    out = [f"derive check {d.arm.name} ({d.n} joints): {_summary(results)} [{seconds:.1f} s]", ""]
+    out = [f"derive check {_title(d)}: {_summary(results)} [{seconds:.1f} s]", ""]
     out += ["  ".join(c.ljust(w) for c, w in zip(row[:4], widths)) + "  " + row[4] for row in rows]
     errata = [r for r in results if r.erratum]
     failures = [r for r in results if r.fails_run]
@@ -66,8 +76,11 @@ def render_text(d: Derivation, results: Sequence[Result], seconds: float, code: 
     if evidence:
         out += ["", "Numeric evidence (not part of any status):"]
         out += [f"  {r.obligation.id}: {r.outcome.evidence}" for r in evidence]
-    if d.speed_bound is not None:
+    if d is not None and d.speed_bound is not None:
         out += ["", f"Theorem 2 for {d.arm.name}: (26) holds for |theta2'| < w1/X = {float(d.speed_bound):.6g} rad/s"]
+    if not paper:
+        out += ["", "The paper's printed equations do not depend on the arm: derive check --paper "
+                    "decides them (the errata)."]
     out += ["", _verdict(code)]
     return "\n".join(out) + "\n"
 
@@ -82,10 +95,10 @@ def _cex_json(c: Counterexample | None) -> dict | None:
             "lhs_float": [float(x) for x in c.lhs], "rhs_float": [float(x) for x in c.rhs]}
 
 
-def render_json(d: Derivation, results: Sequence[Result], seconds: float, code: int) -> str:
+def render_json(d: Derivation | None, results: Sequence[Result], seconds: float, code: int) -> str:
     """{"arm", "exit_code", "seconds", "obligations": [{"id", "paper_ref", "kind", "status", "detail",
     "corrected", "counterexample", "evidence"}]}."""
-    doc = {"arm": d.arm.name, "n": d.n, "exit_code": code, "seconds": round(seconds, 3),
+    doc = {"arm": d.arm.name if d else None, "n": d.n if d else None, "exit_code": code, "seconds": round(seconds, 3),
            "obligations": [{"id": r.obligation.id, "paper_ref": r.obligation.paper_ref,
                             "kind": r.obligation.kind.value, "status": r.outcome.status.value,
                             "statement": r.obligation.statement, "detail": r.outcome.detail,
@@ -104,17 +117,18 @@ def _latex_point(c: Counterexample) -> str:
     return ",\\ ".join(f"{sp.latex(s)} = {sp.latex(v)}" for s, v in c.point)
 
 
-def render_markdown(d: Derivation, results: Sequence[Result], seconds: float, code: int) -> str:
+def render_markdown(d: Derivation | None, results: Sequence[Result], seconds: float, code: int) -> str:
     """The table and, per obligation, statement, derivation (LaTeX), correction and counterexample."""
-    out = [f"# derive check: {d.arm.name}", "",
-           f"Arm `{d.arm.name}` ({d.n} joints), source `{Path(d.arm.source).name}`. {_summary(results)}; "
-           f"{seconds:.1f} s.", "", f"**{_verdict(code)}**", "",
+    what = (f"Arm `{d.arm.name}` ({d.n} joints), source `{Path(d.arm.source).name}`." if d is not None else
+            "The paper's printed equations, in generic symbols (arm-independent).")
+    out = [f"# derive check: {d.arm.name if d is not None else 'the paper'}", "",
+           f"{what} {_summary(results)}; {seconds:.1f} s.", "", f"**{_verdict(code)}**", "",
            "Kinds: *project* obligations are about the project's own derivation and must be proved; "
            "*paper* obligations encode an equation as printed: refuted means an erratum.", "",
            "| obligation | paper ref | kind | status | detail |", "|---|---|---|---|---|"]
     out += [f"| `{r.obligation.id}` | {r.obligation.paper_ref} | {r.obligation.kind.value} | "
             f"**{r.outcome.status.value}** | {_md_cell(_one_line(r.outcome.headline, 140))} |" for r in results]
-    if d.speed_bound is not None:
+    if d is not None and d.speed_bound is not None:
         out += ["", f"Theorem 2 for this arm: condition (26) holds for "
                     f"$|\\dot\\theta_2| < w_1/X = {sp.latex(d.speed_bound)} \\approx {float(d.speed_bound):.6g}$ rad/s."]
     out += ["", "## Derivations", ""]

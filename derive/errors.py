@@ -28,13 +28,15 @@ class Problem:
 class SpecError(DeriveError, ValueError):
     """An arm file (or arm mapping) that is malformed or physically impossible.
 
-    ``problems`` holds every problem found; the message lists them all.
+    ``problems`` holds every problem found; the message lists them all, after
+    ``title`` (e.g. "no such arm" for a file that does not exist).
     """
 
-    def __init__(self, source: str, problems: list[Problem] | tuple[Problem, ...]):
+    def __init__(self, source: str, problems: list[Problem] | tuple[Problem, ...],
+                 title: str = "invalid arm description"):
         self.source = source
         self.problems = tuple(problems)
-        lines = [f"invalid arm description {source} ({len(self.problems)} problem"
+        lines = [f"{title} {source} ({len(self.problems)} problem"
                  f"{'' if len(self.problems) == 1 else 's'}):"]
         lines += [f"  - {p}" for p in self.problems]
         super().__init__("\n".join(lines))

@@ -284,7 +284,8 @@ CASES = [
     C_("link-table-and-array", edit("[[link]]", "[link]"), ("file",), "valid TOML"),
     C_("duplicate-key", edit(M1, M1 + "\nmass = 1.0"), ("file",), "valid TOML"),
     C_("not-utf8", lambda: DEFAULT_TEXT.encode() + b"\n# \xff\xfe\n", ("file",), "UTF-8 text"),
-    C_("no-such-file", lambda: None, ("file",), "a readable arm file", cli=True),
+    C_("no-such-file", lambda: None, ("file",), "the name of a packaged arm (glasgow_2link, planar_3link, "
+       "vertical_2link), got no such file", cli=True),
     C_("a-folder", lambda: None, ("file",), "a readable arm file", filename="."),
     C_("file-name-docstring-end", lambda: DEFAULT_TEXT, ("file",), "a file name that is one line",
        filename='a"""b.toml'),
@@ -397,7 +398,8 @@ def test_cli_reports_bad_arm_in_one_message_exit_2(case: Case, tmp_path: Path):
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr
     assert proc.stdout == ""
-    assert proc.stderr.startswith("derive: error: invalid arm description")
+    title = "no such arm" if case.id == "no-such-file" else "invalid arm description"
+    assert proc.stderr.startswith(f"derive: error: {title} ")
     for field in case.fields:
         assert f"  - {field}: expected " in proc.stderr, proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
@@ -477,3 +479,18 @@ def test_no_warning_below_the_speed_bound(tmp_path: Path):
     d = derive.derive(derive.load_arm(_speed_file(tmp_path, "[10.0, 20.0]")))
     assert d.warnings == ()
     assert 24 < float(d.speed_bound) < 25
+
+
+def test_a_bare_name_reads_the_toml_file_of_that_name(tmp_path: Path, monkeypatch):
+    """derive show my3 with ./my3.toml present (issue 15.9): the .toml is tried."""
+    (tmp_path / "my3.toml").write_text(DEFAULT_TEXT.replace('name = "glasgow_2link"', 'name = "my3"'),
+                                       encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert derive.load_arm("my3").name == "my3"
+    assert derive.load_arm("glasgow_2link").source.endswith("arms/glasgow_2link.toml")   # packaged first
+    with pytest.raises(SpecError, match=re.escape(
+            "no such arm my4 (1 problem):\n  - file: expected an arm file (TOML) or the name of a packaged arm "
+            "(glasgow_2link, planar_3link, vertical_2link), got no such file (nor my4.toml)")):
+        derive.load_arm("my4")
+    with pytest.raises(SpecError, match=r"got no such file$"):
+        derive.load_arm("my4.toml")

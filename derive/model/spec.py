@@ -165,12 +165,18 @@ def packaged_arms() -> tuple[str, ...]:
 
 
 def resolve_arm_path(arm: str | Path | None) -> Path:
-    """A path, or the name of a packaged arm, or None (the default arm)."""
+    """A path, or the name of a packaged arm, or None (the default arm).
+
+    A name without a suffix is, in this order, the name of a packaged arm, a file
+    of that name, or that name with ``.toml`` appended (``derive show my3`` reads
+    ``./my3.toml``)."""
     if arm is None:
         return ARMS_DIR / f"{DEFAULT_ARM}.toml"
     path = Path(arm)
     if path.suffix != ".toml" and str(arm) in packaged_arms():
         return ARMS_DIR / f"{arm}.toml"
+    if path.suffix == "" and not path.exists() and Path(f"{arm}.toml").is_file():
+        return Path(f"{arm}.toml")
     return path
 
 
@@ -189,6 +195,11 @@ def load_arm(path: str | Path | None = None) -> Arm:
     try:
         with open(file, "rb") as stream:
             raw = stream.read(MAX_FILE_BYTES + 1)
+    except FileNotFoundError:
+        tried = f" (nor {printable(str(file))}.toml)" if path is not None and file.suffix == "" else ""
+        raise SpecError(printable(source), [Problem(
+            "file", f"an arm file (TOML) or the name of a packaged arm ({', '.join(packaged_arms())})",
+            f"no such file{tried}")], title="no such arm") from None
     except OSError as exc:
         raise fail("a readable arm file (TOML)", exc.strerror or type(exc).__name__) from None
     except ValueError as exc:  # a NUL byte in the path

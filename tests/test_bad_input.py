@@ -471,7 +471,7 @@ def test_cli_warns_when_condition_26_limits_the_stated_speed(tmp_path: Path):
     assert "Traceback" not in proc.stderr
     assert re.search(r"derive: warning: controller\.max_joint_speed\[2\] = 100 rad/s is not below "
                      r"w1/X = 24\.\d+ rad/s", proc.stderr), proc.stderr
-    assert "max |dtheta2| for (26)" in proc.stdout
+    assert "for (26) = 24.6888   w1/X [rad/s] (eq. 26)" in proc.stdout
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fast.toml"]
 
 

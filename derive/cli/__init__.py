@@ -20,6 +20,7 @@ COMMANDS = {
     "generate": ("derive.cli.generate", "write the C and Python controllers of an arm"),
     "embedded": ("derive.embedded.qemu", "cross-compile and run the C controller on emulated Cortex-M boards"),
     "simulate": ("derive.cli.simulate", "simulate the arm in closed loop under the generated controllers"),
+    "init": ("derive.cli.init", "write a starter arm file for a URDF (then: derive generate it)"),
 }
 
 

@@ -158,8 +158,8 @@ def read_motors(r: Reader, value: Any, n: int | None, default: Actuation, joint_
     """The ``[[motor]]`` tables, one per joint. Torque-actuated arms may leave
     them out: then every joint has gear ratio 1, no rotor inertia and no limit."""
     if value is None:
-        if default is Actuation.TORQUE and n is not None:
-            return [Motor(None, None, None, Fraction(1), _ZERO, None, Actuation.TORQUE) for _ in range(n)]
+        if default is Actuation.TORQUE:   # n None: the joints are unknown after another problem
+            return [Motor(None, None, None, Fraction(1), _ZERO, None, Actuation.TORQUE) for _ in range(n or 0)]
         r.add("motor", f"one [[motor]] table per joint (voltage actuation; 'actuation = \"torque\"' "
               "under [arm] makes them optional)", "nothing (the key is missing)")
         return []

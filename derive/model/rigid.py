@@ -183,10 +183,10 @@ def inertia_problem(I: sp.Matrix) -> str | None:
 
 
 def _sign(x: sp.Expr) -> int:
-    """The sign of an exact real number (exact for rationals; 50 digits otherwise, with a
-    relative tolerance of 1e-40 for round-off in transcendental entries)."""
-    x = sp.nsimplify(x) if not isinstance(x, sp.Basic) else x
+    """The sign of an exact real number (exact for rationals; 50 digits otherwise, with
+    an absolute tolerance of 1e-40 for round-off in transcendental entries)."""
+    x = sp.sympify(x)
     if x.is_Rational:
-        return (x > 0) - (x < 0)
+        return 1 if x > 0 else (-1 if x < 0 else 0)
     v = sp.N(x, 50)
     return 0 if abs(v) < sp.Float("1e-40") else (1 if v > 0 else -1)

@@ -11,14 +11,20 @@ and the given value (``-0.3``, ``string 'abc'``); unknown keys are problems too.
 An arm is its kinematic chain (:attr:`Arm.chain`, the one model the dynamics
 read, :mod:`derive.model.chain`), the drive of each joint
 (:attr:`Arm.actuators`, :mod:`derive.model.actuators`), the controller settings
-and the simulation settings. The chain comes from ``[[link]]`` and
-``[[point_mass]]`` tables (a planar chain, :mod:`derive.model.planar`).
+and the simulation settings. The chain comes from exactly one of:
+``[[link]]`` and ``[[point_mass]]`` tables (a planar chain,
+:mod:`derive.model.planar`), a ``[dh]`` table with ``[[body]]`` tables
+(:mod:`derive.model.dh`), or ``urdf = "robot.urdf"`` with ``base_link``,
+``tip_link`` and ``locked`` under ``[arm]`` (:mod:`derive.model.urdf`).
 
 ``[arm]`` keys: ``name``, ``description``, ``gravity`` (the magnitude g >= 0 in
 m/s^2, default 0), ``gravity_direction`` (the direction of free fall in the
 base frame, normalised; a planar arm gives [x, y], default [0, -1], so
-[0, 1] is a ceiling-mounted arm), ``actuation`` ("voltage", the default, or
-"torque": the default of every ``[[motor]]``).
+[0, 1] is a ceiling-mounted arm; a DH or URDF arm [x, y, z], default
+[0, 0, -1]), ``actuation`` ("voltage", the default, or "torque": the default
+of every ``[[motor]]``; torque-actuated arms may leave ``[[motor]]`` out).
+DH and URDF arms give each joint's viscous friction in ``[[motor]]``
+(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default).
 
 The runtime parameters (:attr:`Arm.parameters`) are the file's own values,
 each with its unit and field: the chain's, the drives' (Kt, Kv, Ra, gr, Jm,
@@ -44,7 +50,9 @@ from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Read
 from derive.model.names import name_check
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
+from derive.model.dh import dh_chain
 from derive.model.singular import unmoved_joint
+from derive.model.urdf import urdf_chain
 
 __all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
 
@@ -86,28 +94,37 @@ class Arm:
     simulation: SimSettings = field(default_factory=SimSettings, compare=False)
     source_sha256: str = ""  # of the bytes validated (load_arm), recorded in MANIFEST.json
     gravity_direction: tuple[Fraction, ...] = (Fraction(0), Fraction(-1))
+    spatial: Chain | None = None          # the chain of a DH or URDF arm (planar arms: None)
+    joint_friction: tuple[tuple[Fraction, str], ...] = ()   # DH/URDF: (bv, its field) per joint
 
     @property
     def n(self) -> int:
         """Number of joints."""
-        return len(self.links)
+        return len(self.links) if self.spatial is None else self.spatial.n
 
     @property
     def chain(self) -> Chain:
         """The normalised kinematic chain (bodies, joints, gravity) the dynamics read."""
+        if self.spatial is not None:
+            return self.spatial
         return _planar(self.links, self.point_masses, self.gravity, self.gravity_direction)
+
+    def _frictions(self) -> tuple[tuple[Fraction, str], ...]:
+        if self.spatial is not None:
+            return self.joint_friction
+        return tuple((link.viscous_friction, f"link[{i}].viscous_friction") for i, link in enumerate(self.links, 1))
 
     @property
     def actuators(self) -> tuple[Actuator, ...]:
         """The drive of each joint (B, damping, reflected rotor inertia; eq. 12)."""
-        return _drives(self.motors, tuple(link.viscous_friction for link in self.links))[0]
+        return _drives(self.motors, self._frictions())[0]
 
     @property
     def parameters(self) -> tuple[Parameter, ...]:
         """Every runtime parameter, in canonical order: the chain's, the drives'
         (grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the controller's (T1, T2, w)."""
-        drives = _drives(self.motors, tuple(link.viscous_friction for link in self.links))[1]
-        return self.chain.parameters + drives + controller_parameters(self.controller)
+        return self.chain.parameters + _drives(self.motors, self._frictions())[1] + controller_parameters(
+            self.controller)
 
 
 T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
@@ -148,11 +165,11 @@ _KINDS = ("Kt", "Kv", "Ra", "gr", "Jm", "bv")
 
 
 @functools.lru_cache(maxsize=64)
-def _drives(motors: tuple[Motor, ...], frictions: tuple[Fraction, ...]
+def _drives(motors: tuple[Motor, ...], frictions: tuple[tuple[Fraction, str], ...]
             ) -> tuple[tuple[Actuator, ...], tuple[Parameter, ...]]:
     acts, params = [], []
-    for i, (m, bv) in enumerate(zip(motors, frictions), 1):
-        act, ps = actuator(i, m, bv, f"link[{i}].viscous_friction")
+    for i, (m, (bv, where)) in enumerate(zip(motors, frictions), 1):
+        act, ps = actuator(i, m, bv, where)
         acts.append(act)
         params += ps
     order = sorted(params, key=lambda p: _KINDS.index(p.symbol.name.rstrip("0123456789")))
@@ -218,33 +235,85 @@ def load_arm(path: str | Path | None = None) -> Arm:
         raise fail("valid TOML", "arrays or tables nested too deeply to read") from None
     except ValueError as exc:  # an integer beyond Python's digit limit
         raise fail("valid TOML with numbers a double can hold", str(exc).split(";")[0]) from None
-    return replace(arm_from_dict(data, source), source_sha256=hashlib.sha256(raw).hexdigest())
+    return replace(arm_from_dict(data, source, file.parent), source_sha256=hashlib.sha256(raw).hexdigest())
 
 
 # -- the schema ---------------------------------------------------------------------------
 
-TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": "one [[link]] table per joint, base to tip",
-            "point_mass": None, "motor": None,
-            "controller": "a table [controller] with T1, T2 and w", "simulation": None}
+TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
+            "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
-            "description": None, "gravity": None, "gravity_direction": None, "actuation": None}
+            "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
+            "urdf": None, "base_link": None, "tip_link": None, "locked": None}
+URDF_ONLY = ("base_link", "tip_link", "locked")
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None}
+KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
+              "or urdf = \"robot.urdf\" under [arm]")
 
 
-def arm_from_dict(data: Any, source: str = "<dict>") -> Arm:
-    """Validate a parsed arm mapping; raise SpecError with every problem."""
+def _kind(r: Reader, top: dict, arm: Any) -> str | None:
+    """Where the kinematics come from: 'planar', 'dh' or 'urdf' (None: a problem was added)."""
+    urdf = isinstance(arm, dict) and "urdf" in arm
+    found = [k for k, present in (("planar", "link" in top), ("dh", "dh" in top), ("urdf", urdf)) if present]
+    if len(found) != 1:
+        r.add("link" if not found else "arm file", KINEMATICS,
+              "nothing (no [[link]], [dh] or urdf)" if not found else f"{' and '.join(found)} together")
+        return None
+    kind = found[0]
+    for key, owner in (("point_mass", "planar"), ("body", "dh")):
+        if key in top and kind != owner:
+            r.add(key, f"no [[{key}]] tables (they belong to {'[[link]]' if owner == 'planar' else '[dh]'} arms)",
+                  f"{len(top[key]) if isinstance(top[key], list) else 1} with a {kind} arm")
+    if kind == "dh" and "body" not in top:
+        r.add("body", "one [[body]] table per row of dh.table", "nothing (the key is missing)")
+    for key in URDF_ONLY:
+        if isinstance(arm, dict) and key in arm and kind != "urdf":
+            r.add(f"arm.{key}", "no such key without urdf = \"robot.urdf\"", f"{show(arm[key])} with a {kind} arm")
+    return kind
+
+
+def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None) -> Arm:
+    """Validate a parsed arm mapping; raise SpecError with every problem.
+
+    ``base_dir``: where a ``urdf`` path is relative to (default: the folder of
+    ``source`` when it is a path, else the working directory).
+    """
     r = Reader()
     if isinstance(data, dict):
         top = r.table(data, "", TOP_KEYS, "")
     else:
         r.bad("arm file", "a table of [arm], [[link]], [[motor]] and [controller]", data)
         top = {}
-    head = _head(r, top.get("arm", _MISSING))
-    links = read_links(r, top.get("link"))
-    n = None if links is None else len(links)
-    point_masses = read_point_masses(r, top.get("point_mass", []), n)
-    motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=False)
+    arm_table = top.get("arm", _MISSING)
+    kind = _kind(r, top, arm_table)
+    head = _head(r, arm_table, 2 if kind == "planar" else 3)
+    if base_dir is None:
+        base_dir = Path(source).parent if not source.startswith("<") else Path.cwd()
+    links, point_masses, spatial, friction = [], [], None, ()
+    g = gravity_parameter(head.gravity if head.gravity is not None else _ZERO)
+    if kind == "planar":
+        links = read_links(r, top.get("link"))
+        point_masses = read_point_masses(r, top.get("point_mass", []), None if links is None else len(links))
+        n = None if links is None else len(links)
+    elif kind == "dh":
+        spatial = dh_chain(r, top.get("dh"), top.get("body", []), g, unit_direction(head.direction or SPATIAL_DOWN))
+        n = None if spatial is None else spatial.n
+    elif kind == "urdf":
+        found = urdf_chain(r, arm_table, base_dir, g, unit_direction(head.direction or SPATIAL_DOWN))
+        spatial = None if found is None else found.chain
+        n = None if spatial is None else spatial.n
+    else:
+        n = None
+    joints = "[[link]]" if kind == "planar" else ("rows of dh.table" if kind == "dh" else "moving joints")
+    motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=kind != "planar", joints=joints)
+    if kind == "urdf" and spatial is not None and len(motors) == n:
+        friction = tuple((m.viscous_friction, f"motor[{i}].viscous_friction") if m.viscous_friction is not None
+                         else (v, where) for i, (m, v, where) in enumerate(
+                             zip(motors, found.damping, found.damping_fields), 1))
+    elif kind == "dh" and len(motors) == n:
+        friction = tuple((m.viscous_friction or _ZERO, f"motor[{i}].viscous_friction")
+                         for i, m in enumerate(motors, 1))
     controller = _controller(r, top.get("controller", _MISSING), n)
     simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
     r.problems.extend(sim_problems if n else [])
@@ -252,23 +321,28 @@ def arm_from_dict(data: Any, source: str = "<dict>") -> Arm:
         raise SpecError(printable(source), r.problems)
     arm = Arm(name=head.name, description=head.description, gravity=head.gravity, links=tuple(links),
               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
-              simulation=simulation, gravity_direction=head.direction or (Fraction(0), Fraction(-1)))
+              simulation=simulation, gravity_direction=head.direction or (
+                  (Fraction(0), Fraction(-1)) if kind == "planar" else SPATIAL_DOWN),
+              spatial=spatial, joint_friction=friction)
     _moves_inertia(r, arm)
     if r.problems:
         raise SpecError(printable(source), r.problems)
     return arm
 
 
+SPATIAL_DOWN = (Fraction(0), Fraction(0), Fraction(-1))
+
+
 @dataclass(frozen=True)
 class _Head:
     name: str
     description: str
-    gravity: Fraction
+    gravity: Fraction | None
     direction: tuple[Fraction, ...] | None
     actuation: Actuation
 
 
-def _head(r: Reader, value: Any) -> _Head:
+def _head(r: Reader, value: Any, size: int) -> _Head:
     d = None if value is _MISSING else r.table(value, "arm", ARM_KEYS, "a table [arm] with at least a name")
     if d is None:
         return _Head("", "", _ZERO, None, Actuation.VOLTAGE)
@@ -276,7 +350,7 @@ def _head(r: Reader, value: Any) -> _Head:
     if "name" in d and (found := name_check(name)):
         r.add("arm.name", found[0], found[1] if isinstance(name, str) else show(name))
     return _Head(name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", NONNEGATIVE["m/s^2"], _ZERO),
-                 _direction(r, d.get("gravity_direction"), 2),
+                 _direction(r, d.get("gravity_direction"), size),
                  actuation_value(r, d.get("actuation"), "arm.actuation", Actuation.VOLTAGE))
 
 

@@ -1,0 +1,356 @@
+"""URDF arm files: ``urdf = "robot.urdf"`` under ``[arm]`` -> a :class:`Chain`.
+
+::
+
+    [arm]
+    urdf = "panda.urdf"            # path relative to the arm file
+    base_link = "panda_link0"      # the chain runs from this link ...
+    tip_link = "panda_hand_tcp"    # ... to this one
+    locked = { panda_finger_joint1 = 0.0 }   # joints held at a value (rad or m)
+
+Reading: the file is checked by ``defusedxml`` first (no entity declarations,
+no external entities or DTDs: an entity-expansion bomb or
+``file:///etc/passwd`` is refused unexpanded), every number of the elements
+used is checked (finite, the right count) and named in a message, and the
+URDF is parsed by ``urdf_parser_py`` (ROS's reference Python parser).
+
+Normalisation follows the URDF specification: ``rpy`` is fixed-axis X-Y-Z,
+R = Rz(yaw) Ry(pitch) Rx(roll) (angles within 1e-12 of k pi/2 are exact); an
+absent ``<origin>`` is the identity; an absent ``<axis>`` is (1, 0, 0); a
+non-unit axis is normalised (noted), a zero axis of a joint that moves is an
+error; the inertia tensor of ``<inertial>`` is rotated by its origin's rpy as
+R I R^T, moved to the joint frame by the parallel-axis theorem; a
+``continuous`` joint is one angle (its limits are ignored, as the
+specification says). Fixed joints are merged into the body of the moving joint
+above them (links after the last moving joint, such as a flange or tool,
+included); moving joints off the base-to-tip chain (gripper fingers) are locked
+at ``locked``'s value (default 0) and merged likewise; joints on the chain
+listed in ``locked`` are held too. Each of these steps is a sentence in
+:attr:`Chain.notes`. A ``mimic`` or a ``floating``/``planar`` joint on the
+chain is an error (not supported). Links above the base link do not move and
+are left out.
+
+Chain joint i's frame F_i is the URDF child link frame of moving joint i.
+The runtime parameters are the ten body parameters of each body in F_i (after
+merging): m, h = m c (hx, hy, hz) and the inertia about F_i's origin (Ixx, Ixy,
+Ixz, Iyy, Iyz, Izz), named m1, hx1, ..., Izz1; the kinematics are constants.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from difflib import get_close_matches
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
+from derive.model.fields import Reader, inline, show, to_fraction
+from derive.model.rigid import (axis_angle, body_from_com, empty_body, exact_angle, inertia_problem, merge, move,
+                                rational, rpy, tidy)
+from derive.model.urdf_xml import parse_safely
+
+MOVING = {"revolute": JointType.REVOLUTE, "continuous": JointType.CONTINUOUS, "prismatic": JointType.PRISMATIC}
+_BODY_NAMES = ("m", "hx", "hy", "hz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
+_INERTIA_INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+@dataclass(frozen=True)
+class UrdfChain:
+    """What a URDF gives an arm: its chain and, per moving joint, the viscous
+    damping of ``<dynamics damping>`` (0 when absent) and that element's field."""
+
+    chain: Chain
+    damping: tuple[Fraction, ...]
+    damping_fields: tuple[str, ...]
+
+
+def _joint_field(name: str, what: str = "") -> str:
+    return f"urdf joint {name!r}" + (f" {what}" if what else "")
+
+
+def _link_field(name: str, what: str = "") -> str:
+    return f"urdf link {name!r}" + (f" {what}" if what else "")
+
+
+def _origin(o: Any) -> Transform:
+    """URDF <origin>: x_parent = R x_child + p (identity when absent)."""
+    if o is None:
+        return Transform.identity()
+    xyz = [rational(x) for x in (o.xyz or (0, 0, 0))]
+    angles = [exact_angle(x) for x in (o.rpy or (0, 0, 0))]
+    return Transform(rpy(*angles), sp.ImmutableMatrix(xyz))
+
+
+def _unit_axis(r: Reader, joint: Any, notes: list[str]) -> sp.ImmutableMatrix | None:
+    raw = joint.axis if joint.axis is not None else (1.0, 0.0, 0.0)
+    v = sp.Matrix([rational(x) for x in raw])
+    norm2 = (v.T * v)[0, 0]
+    if norm2 == 0:
+        r.add(_joint_field(joint.name, "<axis xyz>"), "a non-zero axis (the joint moves about or along it)",
+              " ".join(repr(float(x)) for x in raw))
+        return None
+    if norm2 != 1:
+        unit = (v / sp.sqrt(norm2)).applyfunc(sp.radsimp)
+        notes.append(f"joint {joint.name!r}: axis ({' '.join(f'{float(x):g}' for x in raw)}) is not unit length; "
+                     f"normalised to ({', '.join(str(x) for x in unit)})")
+        return sp.ImmutableMatrix(unit)
+    return sp.ImmutableMatrix(v)
+
+
+def _motion(axis: sp.Matrix, kind: str, value: sp.Expr) -> Transform:
+    if kind == "prismatic":
+        return Transform(sp.ImmutableMatrix.eye(3), sp.ImmutableMatrix(axis * value))
+    return Transform(axis_angle(axis, value), sp.ImmutableMatrix.zeros(3, 1))
+
+
+def _link_body(link: Any) -> Body:
+    """A link's <inertial> in its own frame (empty when absent)."""
+    inertial = link.inertial
+    if inertial is None:
+        return empty_body()
+    m = rational(inertial.mass if inertial.mass is not None else 0.0)
+    t = inertial.inertia
+    entries = [rational(getattr(t, k) or 0.0) if t is not None else sp.Integer(0)
+               for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+    I = sp.Matrix(3, 3, lambda i, j: entries[_INERTIA_INDEX.index((min(i, j), max(i, j)))])
+    o = inertial.origin
+    com = sp.Matrix([rational(x) for x in (o.xyz if o is not None and o.xyz else (0, 0, 0))])
+    R = rpy(*[exact_angle(x) for x in (o.rpy if o is not None and o.rpy else (0, 0, 0))])
+    return body_from_com(m, com, I, R)
+
+
+def _check_inertials(r: Reader, robot: Any) -> None:
+    for link in robot.links:
+        inertial = link.inertial
+        if inertial is None:
+            continue
+        if inertial.mass is not None and inertial.mass < 0:
+            r.add(_link_field(link.name, "<inertial><mass value>"), "a finite number >= 0 (kg)", repr(inertial.mass))
+        t = inertial.inertia
+        if t is None:
+            continue
+        entries = [rational(getattr(t, k) or 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+        I = sp.Matrix(3, 3, lambda i, j: entries[_INERTIA_INDEX.index((min(i, j), max(i, j)))])
+        why = inertia_problem(I)
+        if why is not None:
+            shown = " ".join(f"{k}={float(x):g}" for k, x in zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), entries))
+            r.add(_link_field(link.name, "<inertial><inertia>"), f"{why} (kg m^2, about the centre of mass)", shown)
+
+
+def _tree(r: Reader, robot: Any) -> dict[str, Any] | None:
+    """link -> its parent joint; None (problems added) unless a tree of unique names."""
+    links = [link.name for link in robot.links]
+    for kind, names in (("link", links), ("joint", [j.name for j in robot.joints])):
+        seen: set[str] = set()
+        for name in names:
+            if name in seen:
+                r.add(f"urdf {kind} {name!r}", f"one {kind} of each name", f"two {kind}s named {name!r}")
+            seen.add(name)
+    parent: dict[str, Any] = {}
+    for j in robot.joints:
+        for end in (j.parent, j.child):
+            if end not in links:
+                r.add(_joint_field(j.name, "<parent link>" if end == j.parent else "<child link>"),
+                      "the name of a link of the URDF", repr(end))
+        if j.child in parent:
+            r.add(_link_field(j.child), "one parent joint (a URDF is a tree; a kinematic loop is not supported)",
+                  f"2 parent joints, {parent[j.child].name!r} and {j.name!r}")
+        parent[j.child] = j
+    if r.problems:
+        return None
+    for start in links:
+        path, link = [start], start
+        while link in parent:
+            link = parent[link].parent
+            if link in path:
+                loop = " -> ".join(path[path.index(link):] + [link])
+                r.add(_link_field(start), "a link below a root (a URDF is a tree)", f"a kinematic loop {loop}")
+                return None
+            path.append(link)
+    return parent
+
+
+def _link_choice(r: Reader, d: dict, key: str, links: list[str]) -> str | None:
+    name = d.get(key)
+    if not isinstance(name, str) or name not in links:
+        close = get_close_matches(name, links, n=3) if isinstance(name, str) else []
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+        listed = ", ".join(map(repr, links[:12])) + (", ..." if len(links) > 12 else "")
+        given = "nothing (the key is missing)" if name is None else (
+            f"{show(name)}, not a link of the URDF{hint}" if isinstance(name, str) else show(name))
+        r.add(f"arm.{key}", f"the name of a link of the URDF ({listed})", given)
+        return None
+    return name
+
+
+def _locked(r: Reader, value: Any, robot: Any) -> dict[str, sp.Expr]:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        r.bad("arm.locked", "a table {joint = value} of joints held at a value (rad or m)", value)
+        return {}
+    joints = {j.name: j for j in robot.joints}
+    out = {}
+    for name, v in value.items():
+        f = f"arm.locked.{inline(name) if not isinstance(name, str) else name}"
+        if name not in joints or joints[name].type not in MOVING:
+            moving = [j for j in joints if joints[j].type in MOVING]
+            close = get_close_matches(name, moving, n=2)
+            r.add(f, "the name of a revolute, continuous or prismatic joint of the URDF"
+                  + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
+                  "an unknown joint" if name not in joints else f"a {joints[name].type} joint")
+            continue
+        x = to_fraction(v)
+        if x is None:
+            r.bad(f, "a finite number (rad or m)", v)
+            continue
+        out[name] = exact_angle(x) if joints[name].type != "prismatic" else rational(x)
+    return out
+
+
+def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
+    """The chain of the URDF named by the ``[arm]`` table ``d``, or None after
+    adding its problems (each naming the element or arm-file field) to ``r``."""
+    notes: list[str] = []
+    robot = parse_safely(r, d.get("urdf"), base_dir, notes)
+    if robot is None:
+        return None
+    _check_inertials(r, robot)
+    parent = _tree(r, robot)
+    links = [link.name for link in robot.links]
+    base, tip = _link_choice(r, d, "base_link", links), _link_choice(r, d, "tip_link", links)
+    locked = _locked(r, d.get("locked"), robot)
+    if parent is None or base is None or tip is None or r.problems:
+        return None
+    path, link = [], tip
+    while link != base:
+        if link not in parent:
+            r.add("arm.tip_link", f"a link below base_link {base!r} (the chain runs from base to tip)",
+                  f"{tip!r}, whose chain to the root {link!r} does not pass {base!r}")
+            return None
+        path.append(parent[link])
+        link = parent[link].parent
+    path.reverse()
+    on_path = {j.name for j in path}
+    for j in path:
+        if j.name in locked:
+            continue
+        if j.type in ("floating", "planar"):
+            r.add(_joint_field(j.name, "type"), "revolute, continuous, prismatic or fixed on the chain from "
+                  f"{base!r} to {tip!r} (a {j.type} joint is not supported)", repr(j.type))
+        elif j.mimic is not None:
+            r.add(_joint_field(j.name, "<mimic>"), f"a joint without <mimic> on the chain from {base!r} to {tip!r} "
+                  "(a mimic joint is not supported: list it in locked to hold it)",
+                  f"<mimic joint={j.mimic.joint!r}>")
+    if r.problems:
+        return None
+    return _build(r, robot, base, path, on_path, locked, notes, gravity, direction)
+
+
+def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], locked: dict[str, sp.Expr],
+           notes: list[str], gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
+    children: dict[str, list] = {}
+    for j in robot.joints:
+        children.setdefault(j.parent, []).append(j)
+    link_map = {link.name: link for link in robot.links}
+    joints: list[Joint] = []
+    bodies: list[Body] = []
+    members: list[list[str]] = []
+    damping: list[Fraction] = []
+    merged, held = [], []
+    stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
+    while stack:
+        name, owner, T = stack.pop()
+        if owner >= 0:
+            bodies[owner] = merge(bodies[owner], move(_link_body(link_map[name]), T))
+            members[owner].append(name)
+        for j in reversed(children.get(name, [])):
+            origin = T.compose(_origin(j.origin))
+            if j.type in MOVING and j.name in on_path and j.name not in locked:
+                axis = _unit_axis(r, j, notes)
+                if axis is None:
+                    continue
+                joints.append(Joint(j.name, MOVING[j.type], tidy(origin), axis, _limits(j), _joint_field(j.name)))
+                bodies.append(empty_body())
+                members.append([])
+                damping.append(Fraction(repr(float(j.dynamics.damping))) if j.dynamics is not None
+                               and j.dynamics.damping is not None else Fraction(0))
+                if j.dynamics is not None and j.dynamics.friction:
+                    notes.append(f"joint {j.name!r}: <dynamics friction> (Coulomb) is not modelled")
+                stack.append((j.child, len(joints) - 1, Transform.identity()))
+                continue
+            if j.type in MOVING or j.type in ("floating", "planar"):
+                value = locked.get(j.name, sp.Integer(0))
+                if j.type in MOVING and value != 0:
+                    axis = _unit_axis(r, j, notes)
+                    if axis is None:
+                        continue
+                    origin = origin.compose(_motion(axis, j.type, value))
+                held.append(f"{j.name!r} at {value}")
+            elif owner >= 0:
+                merged.append(repr(j.name))
+            stack.append((j.child, owner, tidy(origin)))
+    if r.problems:
+        return None
+    if not joints:
+        r.add("arm.tip_link", "a tip link with at least one revolute, continuous or prismatic joint between it "
+              "and base_link", "a chain of fixed joints only")
+        return None
+    if merged:
+        notes.append(f"fixed joints merged into the body of the moving joint above them: {', '.join(merged)}")
+    if held:
+        notes.append(f"joints held (locked) and their bodies merged: {', '.join(held)}")
+    for j in joints:
+        if j.type is JointType.CONTINUOUS:
+            notes.append(f"joint {j.name!r} is continuous: one angle, its <limit lower/upper> ignored")
+    params, symbolic = _parameters(bodies, members, joints)
+    vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
+    chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes))
+    return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints))
+
+
+def _limits(j: Any) -> Limits:
+    lim = j.limit
+    if lim is None:
+        return Limits()
+
+    def f(x: Any) -> Fraction | None:
+        return None if x is None else Fraction(repr(float(x)))
+    if j.type == "continuous":
+        return Limits(velocity=f(lim.velocity), effort=f(lim.effort))
+    return Limits(f(lim.lower), f(lim.upper), f(lim.velocity), f(lim.effort))
+
+
+def _value(x: sp.Expr) -> Fraction:
+    """An exact body value as a Fraction (40 significant digits where it is irrational)."""
+    x = sp.nsimplify(x) if x.is_Float else x
+    if x.is_Rational:
+        return Fraction(int(x.p), int(x.q))
+    return Fraction(str(sp.N(x, 40)))
+
+
+def _parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint]
+                ) -> tuple[list[Parameter], list[Body]]:
+    """The ten body parameters of each body (in F_i), and the bodies in their symbols."""
+    params: list[Parameter] = []
+    out = []
+    for i, (body, names, joint) in enumerate(zip(bodies, members, joints), 1):
+        where = (f"urdf link{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))} "
+                 f"(at joint {joint.name!r})" if names else f"nothing (at joint {joint.name!r})")
+        entries = [body.mass, *body.first_moment] + [body.inertia[a, b] for a, b in _INERTIA_INDEX]
+        units = ["kg"] + ["kg m"] * 3 + ["kg m^2"] * 6
+        docs = ["mass", "first moment m c, x", "first moment m c, y", "first moment m c, z"] + [
+            f"inertia about the joint frame's origin, {n[1:]}" for n in _BODY_NAMES[4:]]
+        syms = []
+        for name, value, unit, doc in zip(_BODY_NAMES, entries, units, docs):
+            assume = {"nonnegative": True} if name in ("m", "Ixx", "Iyy", "Izz") else {"real": True}
+            p = Parameter(sp.Symbol(f"{name}{i}", **assume), _value(sp.sympify(value)), unit, where,
+                          f"{doc} of body {i}")
+            params.append(p)
+            syms.append(p.symbol)
+        I = sp.Matrix(3, 3, lambda a, b: syms[4 + _INERTIA_INDEX.index((min(a, b), max(a, b)))])
+        out.append(Body(syms[0], sp.ImmutableMatrix(syms[1:4]), sp.ImmutableMatrix(I)))
+    return params, out
+

@@ -1,0 +1,176 @@
+"""Bad URDF and DH arm files: each is ONE SpecError naming the element (link or
+joint and attribute) or arm-file field, what was expected and what was given;
+through the CLI, exit code 2, no traceback, nothing written. Same table style
+as test_bad_input.py: an id, the arm file and URDF, the fields, a fragment."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import derive
+from derive.errors import SpecError
+
+from .test_bad_input import to_toml
+
+HEAD = {"name": "bad", "gravity": 9.81, "actuation": "torque"}
+CONTROLLER = {"T1": 0.0, "T2": 0.5, "w": [1.0, 1.0]}
+BOX = '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/>'
+
+
+def link(name: str, inertial: str | None = None) -> str:
+    body = inertial if inertial is not None else f'<origin xyz="0.1 0 0"/><mass value="1.0"/>{BOX}'
+    return f'<link name="{name}"><inertial>{body}</inertial></link>'
+
+
+def joint(name: str, parent: str, child: str, kind: str = "revolute", extra: str = '<axis xyz="0 0 1"/>') -> str:
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="0 0 0.1" rpy="0 0 0"/>{extra}</joint>')
+
+
+def robot(*parts: str, prolog: str = "") -> str:
+    return f'<?xml version="1.0"?>\n{prolog}<robot name="r">{"".join(parts)}</robot>\n'
+
+
+GOOD = (link("a"), link("b"), link("c"), joint("j1", "a", "b"), joint("j2", "b", "c"))
+
+
+def good(**change: str) -> str:
+    """The good 2-joint URDF with parts replaced by name (a, b, c, j1, j2)."""
+    names = ("a", "b", "c", "j1", "j2")
+    return robot(*[change.get(n, part) for n, part in zip(names, GOOD)])
+
+
+BOMB = ('<!DOCTYPE r [<!ENTITY lol "lol"><!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">'
+        '<!ENTITY lol3 "&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;">]>\n')
+XXE = '<!DOCTYPE r [<!ENTITY xxe SYSTEM "file:///etc/passwd">]>\n'
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    urdf: str | None          # the URDF text (None: no file)
+    arm: dict                 # [arm] keys beyond HEAD (urdf path added unless given)
+    fields: tuple[str, ...]
+    match: str
+    cli: bool = False
+    top: dict | None = None   # a whole arm mapping instead (DH cases)
+
+
+def arm_keys(**extra) -> dict:
+    return {"base_link": "a", "tip_link": "c", **extra}
+
+
+def dh(table: list, bodies: int = 2, **extra) -> dict:
+    return {"arm": dict(HEAD), "dh": {"convention": "standard", "table": table, **extra},
+            "body": [{"mass": 1.0, "com": [0.1, 0, 0]}] * bodies, "controller": CONTROLLER}
+
+
+C = Case
+CASES = [
+    C("malformed-xml", robot(*GOOD)[:-12], arm_keys(), ("arm.urdf",), "well-formed XML", cli=True),
+    C("entity-bomb", robot(*GOOD[:3], joint("j1", "a", "b"), joint("j2", "b", "c"), prolog=BOMB).replace(
+        '<robot name="r">', '<robot name="&lol3;">'), arm_keys(), ("arm.urdf",), "an entity declaration 'lol'",
+      cli=True),
+    C("external-entity", robot(*GOOD, prolog=XXE).replace('<robot name="r">', '<robot name="&xxe;">'), arm_keys(),
+      ("arm.urdf",), "an external entity 'xxe' -> 'file:///etc/passwd'", cli=True),
+    C("external-dtd", robot(*GOOD, prolog='<!DOCTYPE robot SYSTEM "file:///etc/passwd">\n'), arm_keys(),
+      ("arm.urdf",), "without an external DTD"),
+    C("not-a-robot", '<?xml version="1.0"?><sdf/>', arm_keys(), ("arm.urdf",), "root element is <robot>"),
+    C("no-such-file", None, arm_keys(urdf="missing.urdf"), ("arm.urdf",), "(no such file", cli=True),
+    C("missing-base", good(), {"tip_link": "c"}, ("arm.base_link",), "got nothing (the key is missing)"),
+    C("unknown-tip", good(), arm_keys(tip_link="cc"), ("arm.tip_link",), "not a link of the URDF; did you mean 'c'"),
+    C("tip-not-below-base", good(), arm_keys(base_link="c", tip_link="a"), ("arm.tip_link",),
+      "whose chain to the root 'a' does not pass 'c'"),
+    C("two-parents", good(j2=joint("j2", "b", "c") + joint("j3", "a", "c")), arm_keys(), ("urdf link 'c'",),
+      "2 parent joints, 'j2' and 'j3'"),
+    C("loop", robot(*GOOD, link("d"), joint("j3", "c", "d"), joint("j4", "d", "b")).replace(
+        joint("j1", "a", "b"), ""), arm_keys(base_link="b", tip_link="d"), ("urdf link 'b'",),
+      "a kinematic loop b -> d -> c -> b"),
+    C("floating-on-chain", good(j2=joint("j2", "b", "c", "floating", "")), arm_keys(), ("urdf joint 'j2' type",),
+      "a floating joint is not supported"),
+    C("planar-on-chain", good(j1=joint("j1", "a", "b", "planar")), arm_keys(), ("urdf joint 'j1' type",),
+      "a planar joint is not supported"),
+    C("mimic-on-chain", good(j2=joint("j2", "b", "c", extra='<axis xyz="0 0 1"/><mimic joint="j1"/>')), arm_keys(),
+      ("urdf joint 'j2' <mimic>",), "a mimic joint is not supported", cli=True),
+    C("negative-mass", good(b=link("b", f'<mass value="-1.0"/>{BOX}')), arm_keys(),
+      ("urdf link 'b' <inertial><mass value>",), ">= 0 (kg), got -1.0"),
+    C("inertia-not-psd", good(b=link("b", '<mass value="1"/><inertia ixx="0.01" ixy="0.02" ixz="0" iyy="0.01" '
+                                          'iyz="0" izz="0.01"/>')), arm_keys(),
+      ("urdf link 'b' <inertial><inertia>",), "a positive semi-definite tensor"),
+    C("inertia-triangle", good(c=link("c", '<mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" '
+                                           'iyz="0" izz="0.03"/>')), arm_keys(),
+      ("urdf link 'c' <inertial><inertia>",), "triangle inequality"),
+    C("zero-axis", good(j1=joint("j1", "a", "b", extra='<axis xyz="0 0 0"/>')), arm_keys(),
+      ("urdf joint 'j1' <axis xyz>",), "a non-zero axis"),
+    C("nan-origin", good(j2=joint("j2", "b", "c").replace('xyz="0 0 0.1"', 'xyz="nan 0 0.1"')), arm_keys(),
+      ("urdf joint 'j2' <origin xyz>",), "3 finite numbers, got 'nan 0 0.1'"),
+    C("inf-mass", good(c=link("c", f'<mass value="inf"/>{BOX}')), arm_keys(), ("urdf link 'c' <inertial><mass value>",),
+      "1 finite number, got 'inf'"),
+    C("short-rpy", good(j1=joint("j1", "a", "b").replace('rpy="0 0 0"', 'rpy="0 0"')), arm_keys(),
+      ("urdf joint 'j1' <origin rpy>",), "3 numbers separated by spaces, got '0 0'"),
+    C("nan-inertia", good(b=link("b", '<mass value="1"/>' + BOX.replace('iyy="0.01"', 'iyy="NaN"'))), arm_keys(),
+      ("urdf link 'b' <inertial><inertia iyy>",), "1 finite number"),
+    C("no-inertia", robot('<link name="a"/><link name="b"/><link name="c"/>', joint("j1", "a", "b"),
+                          joint("j2", "b", "c")), arm_keys(), ("urdf joint 'j1'", ), "J(theta) is singular", cli=True),
+    C("unknown-locked", good(), arm_keys(locked={"nope": 0.1}), ("arm.locked.nope",), "got an unknown joint"),
+    C("locked-fixed", good(c=link("c") + link("d"), j2=joint("j2", "b", "c") + joint("f", "c", "d", "fixed", "")),
+      arm_keys(locked={"f": 0.0}), ("arm.locked.f",), "got a fixed joint"),
+    C("base-link-on-planar", None, {}, ("arm.base_link",), "no such key without urdf",
+      top={"arm": {**HEAD, "base_link": "a"}, "link": [{"length": 0.3, "mass": 1.0}],
+           "controller": {"T1": 0.0, "T2": 0.5, "w": [1.0]}}),
+    C("dh-wrong-column-count", None, {}, ("dh.table[2]",), "expected 4 numbers [a (m), alpha (rad), d (m), theta "
+      "(rad)], got array [0.3, 0.0, 0.0] (3 entries)", cli=True,
+      top=dh([[0.0, "pi/2", 0.1, 0.0], [0.3, 0.0, 0.0]])),
+    C("dh-bad-angle", None, {}, ("dh.table[1].alpha",), "a fraction of pi as text", top=dh([[0, "pi/x", 0, 0],
+                                                                                           [0.3, 0, 0, 0]])),
+    C("dh-body-count", None, {}, ("body",), "one [[body]] table per row of dh.table: 2, got 1 [[body]] table",
+      top=dh([[0, 0, 0, 0], [0.3, 0, 0, 0]], bodies=1)),
+    C("dh-convention", None, {}, ("dh.convention",), "'standard' (Denavit-Hartenberg) or 'modified'",
+      top={**dh([[0, 0, 0, 0], [0.3, 0, 0, 0]]), "dh": {"convention": "craig", "table": [[0, 0, 0, 0],
+                                                                                          [0.3, 0, 0, 0]]}}),
+    C("dh-and-link", None, {}, ("arm file",), "planar and dh together",
+      top={**dh([[0, 0, 0, 0], [0.3, 0, 0, 0]]), "link": [{"length": 0.3, "mass": 1.0}]}),
+]
+
+
+def write(case: Case, tmp_path: Path) -> Path:
+    if case.top is not None:
+        data = case.top
+    else:
+        if case.urdf is not None:
+            (tmp_path / "r.urdf").write_text(case.urdf, encoding="utf-8")
+        data = {"arm": {**HEAD, "urdf": "r.urdf", **case.arm}, "controller": CONTROLLER}
+    path = tmp_path / "arm.toml"
+    path.write_text(to_toml(data), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_urdf_or_dh_is_one_spec_error_naming_the_element(case: Case, tmp_path: Path):
+    path = write(case, tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(SpecError, match=re.escape(case.match)) as info:
+        derive.load_arm(path)
+    err = info.value
+    assert sorted(p.field for p in err.problems) == sorted(case.fields), str(err)
+    assert all(f"  - {p.field}: expected {p.expected}, got {p.given}" in str(err) for p in err.problems)
+    assert "root:x:0:0" not in str(err)   # /etc/passwd never read
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c.cli], ids=[c.id for c in CASES if c.cli])
+def test_cli_reports_bad_urdf_exit_2(case: Case, tmp_path: Path):
+    path = write(case, tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    proc = subprocess.run([sys.executable, "-m", "derive", "generate", str(path), "--out", str(tmp_path / "out")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stdout == ""
+    assert proc.stderr.startswith("derive: error: invalid arm description")
+    assert all(f"  - {f}: expected " in proc.stderr for f in case.fields), proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

@@ -14,21 +14,6 @@ from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
 from derive.codegen.printing import c_literal, print_function
 
-_PARAM_DOCS = {
-    "l": "length of link {i} [m]", "m": "mass of link {i} [kg]",
-    "c": "centre-of-mass distance of link {i} from its joint [m]",
-    "Ic": "inertia of link {i} about its centre of mass [kg m^2]",
-    "bv": "viscous friction of joint {i} [N m s/rad]", "mp": "mass of point mass {i} [kg]",
-    "rp": "distance of point mass {i} from its link's joint [m]",
-    "Ip": "inertia of point mass {i} about its centre [kg m^2]",
-    "Kt": "torque constant of motor {i} [N m/A]", "Kv": "voltage constant of motor {i} [V s/rad]",
-    "Ra": "armature resistance of motor {i} [ohm]", "gr": "gear ratio of motor {i}",
-    "Jm": "rotor inertia of motor {i} [kg m^2]", "g": "gravity along -y of the base [m/s^2]",
-    "k1": "predictive gain K1 = k1 I (eq. 16)", "k2": "predictive gain K2 = k2 I (eq. 17)",
-    "w": "observer gain w{i} (eq. 25)",
-}
-
-
 def comment_text(text: str) -> str:
     """``text`` safe inside a C block comment and a Python docstring alike:
     printable ASCII kept, any other character and backslash or double quote
@@ -38,13 +23,11 @@ def comment_text(text: str) -> str:
     return out.replace("*/", "* /").replace("/*", "/ *")
 
 
-def param_doc(name: str) -> str:
-    """Human description of a parameter symbol name such as ``Kt2``."""
-    match = re.fullmatch(r"([A-Za-z]+?)(\d*)", name)
-    prefix, index = (match.group(1), match.group(2)) if match else (name, "")
-    if name in _PARAM_DOCS:
-        return _PARAM_DOCS[name]
-    return _PARAM_DOCS.get(prefix, name).format(i=index)
+def param_doc(p) -> str:
+    """A parameter as generated code documents it: what, unit and the arm-file field
+    (a derive.model.chain.Parameter)."""
+    unit = f" [{p.unit}]" if p.unit else ""
+    return comment_text(f"{p.doc}{unit}, from {p.field}")
 
 
 @dataclass(frozen=True)
@@ -76,6 +59,7 @@ class ArmView:
     runtime: bool
     params: tuple[tuple[str, str, str], ...]   # (field, C default literal, doc)
     py_params: tuple[tuple[str, str, str], ...]
+    baked: tuple[str, ...]                      # "name = value unit (field)", the values a baked build holds
     u_max: tuple[str, ...]                      # C literals, 0 = no limit
     py_u_max: tuple[str, ...]
     kernels: tuple[KernelView, ...]
@@ -103,15 +87,18 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
     values = [(str(s), float(v)) for s, v in d.values]
     limits = [float(m.input_limit) if m.input_limit is not None else 0.0 for m in arm.motors]
     numbers = dict(values)
+    docs = {str(p.symbol): p for p in arm.parameters}
+    baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
+                               f"({docs[name].field})") for name, value in values)
     return ArmView(
         arm=arm.name, ARM=arm.name.upper(), description=comment_text(arm.description),
         source_name=comment_text(arm.source.replace("\\", "/").rsplit("/", 1)[-1]), n=d.n, real=real,
         runtime=mode is ParamsMode.RUNTIME,
-        params=tuple((name, c_literal(v, real), param_doc(name)) for name, v in values),
-        py_params=tuple((name, repr(v), param_doc(name)) for name, v in values),
+        params=tuple((name, c_literal(v, real), param_doc(docs[name])) for name, v in values),
+        py_params=tuple((name, repr(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(repr(v) for v in limits),
         kernels=tuple(kernel_view(k, real, arm.name) for k in kernel_specs(d, mode)),
-        k1=repr(numbers["k1"]), k2=repr(numbers["k2"]),
+        k1=repr(float(d.K1[0, 0])), k2=repr(float(d.K2[0, 0])),
         w=tuple(repr(numbers[f"w{i + 1}"]) for i in range(d.n)))
 
 

@@ -16,9 +16,8 @@ from fractions import Fraction
 import sympy as sp
 
 from derive.dynamics.planar import Dynamics
-
-T1, T2 = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
-k1, k2 = sp.Symbol("k1", positive=True), sp.Symbol("k2", positive=True)
+from derive.model.spec import T1_SYMBOL as T1
+from derive.model.spec import T2_SYMBOL as T2
 
 
 def tbar(i: int, j: int, t1: sp.Expr = T1, t2: sp.Expr = T2) -> sp.Expr:
@@ -35,10 +34,11 @@ def gains(t1: sp.Expr = T1, t2: sp.Expr = T2) -> tuple[sp.Expr, sp.Expr]:
 
 @dataclass(frozen=True)
 class Mpc:
-    """Predictive controller in the gain symbols k1, k2 (shapes for n joints).
+    """Predictive controller in the arm's parameters T1, T2 (shapes for n joints).
 
-    K1, K2: n x n (k1 I, k2 I); Cout: n x n output matrix C (eq. 13);
-    u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; values: exact k1, k2.
+    K1, K2: n x n (k1 I, k2 I with k1, k2 the expressions of T1, T2 of eq. 16-18,
+    so a runtime T2 changes the gains); Cout: n x n output matrix C (eq. 13);
+    u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; values: exact T1, T2.
     """
 
     K1: sp.Matrix
@@ -53,13 +53,13 @@ def _rational(x: Fraction) -> sp.Rational:
 
 
 def derive_mpc(dyn: Dynamics, t1: Fraction, t2: Fraction, C: tuple[tuple[Fraction, ...], ...]) -> Mpc:
-    """The law u* (eq. 15) for the dynamics, with gains k1, k2 for [t1, t2]."""
+    """The law u* (eq. 15) for the dynamics, with gains k1(T1, T2), k2(T1, T2) for [t1, t2]."""
     n = dyn.J.rows
     s = dyn.sym
+    k1, k2 = gains()
     K1, K2 = k1 * sp.eye(n), k2 * sp.eye(n)
     Cout = sp.Matrix([[_rational(x) for x in row] for row in C])
     e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
     Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])
     u_star = Binv * dyn.J * Cout.inv() * (K1 * e + K2 * de + ddyd) + Binv * dyn.G
-    v1, v2 = gains(_rational(t1), _rational(t2))
-    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, values=((k1, v1), (k2, v2)))
+    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, values=((T1, _rational(t1)), (T2, _rational(t2))))

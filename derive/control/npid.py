@@ -73,7 +73,7 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
     if len(solution) != 1:
         raise DerivationError("no unique initial estimate dhat(0) removes the constant of eq. (30)")
     dhat0 = dhat_init.xreplace(solution[0]).applyfunc(sp.expand)
-    if constant.xreplace(solution[0]).applyfunc(sp.expand) != sp.zeros(n, 1):
+    if constant.xreplace(solution[0]).applyfunc(sp.cancel) != sp.zeros(n, 1):
         raise DerivationError("the derived dhat(0) leaves a constant in eq. (30)")
     dhat_pid = rate.xreplace(antiderivative)  # eq. (32): dhat(t) with its constant removed
     u_npid = mpc.u_star - dhat_pid  # kept factored: its Jacobians keep the structure of J, G

@@ -16,11 +16,12 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dynamics.planar import Dynamics
+from derive.model.spec import w_symbols as spec_w_symbols
 
 
 def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
-    """Observer gain symbols w1..wn."""
-    return tuple(sp.Symbol(f"w{i + 1}", positive=True) for i in range(n))
+    """Observer gain symbols w1..wn (the arm's parameters, derive.model.spec.w_symbols)."""
+    return spec_w_symbols(n)
 
 
 def w_matrix(w) -> sp.Matrix:

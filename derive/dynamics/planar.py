@@ -9,10 +9,11 @@ Two forms, proved equal (tests; ``derive check``):
   Coriolis, centrifugal and gravity bias. Each body is lumped to (M, hx, Io):
   total mass, first moment along the link and inertia about its joint.
 
-The DC motors (inductance neglected) give tau = gr Kt (u - gr Kv theta') / Ra,
-so B = diag(gr Kt / Ra) and G gains diag(gr^2 Kt Kv / Ra + bv) theta'.
-Rotor inertia enters as gr^2 Jm on the diagonal of J (the usual reflected
-inertia; the rotor's gyroscopic coupling with the carrying link is neglected).
+The drives are the arm's actuators (derive.model.actuators): B = diag(gain),
+G gains diag(damping) theta' and J gains diag(reflected_inertia); for DC
+motors (inductance neglected) tau = gr Kt (u - gr Kv theta') / Ra, so
+B = diag(gr Kt / Ra) and damping gr^2 Kt Kv / Ra + bv; rotor inertia enters as
+gr^2 Jm (the rotor's gyroscopic coupling with the carrying link is neglected).
 """
 from __future__ import annotations
 
@@ -188,7 +189,7 @@ def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.
         wi = sum(dq[: i + 1])
         T += m * (vx ** 2 + vy ** 2) / 2 + inertia * wi ** 2 / 2
         V -= m * p.g * (down[0] * x + down[1] * y)
-    T += sum(p.gear[i] ** 2 * p.Jm[i] * dq[i] ** 2 for i in range(n)) / 2
+    T += sum(a.reflected_inertia * dq[i] ** 2 for i, a in enumerate(arm.actuators)) / 2
     dT = sp.Matrix([sp.diff(T, v) for v in dq])
     J = dT.jacobian(dq).applyfunc(sp.expand)
     G = dT.jacobian(q) * sp.Matrix(dq) - sp.Matrix([sp.diff(T - V, v) for v in q])
@@ -213,15 +214,19 @@ def derive_dynamics(arm: Arm) -> Dynamics:
     s = JointSymbols.make(n)
     p = ParamSymbols.make(arm)
     bodies = lumped_bodies(arm, p)
-    reflected = [p.gear[i] ** 2 * p.Jm[i] for i in range(n)]
+    if arm.spatial is not None:
+        from derive.errors import DerivationError
+        raise DerivationError(f"arm {arm.name}: the planar dynamics take [[link]] arms only; a DH or URDF "
+                              "chain needs the spatial dynamics")
+    reflected = [a.reflected_inertia for a in arm.actuators]
     J = crba(bodies, s.theta, p.length, reflected)
     zero = [sp.Integer(0)] * n
     down = _down(arm)
     bias = rnea(bodies, s.theta, s.dtheta, zero, p.length, p.g, down)
     gravity = rnea(bodies, s.theta, zero, zero, p.length, p.g, down)
-    damping = sp.diag(*[p.gear[i] ** 2 * p.Kt[i] * p.Kv[i] / p.R[i] + p.friction[i] for i in range(n)])
+    damping = sp.diag(*[a.damping for a in arm.actuators])
     G = bias + damping * sp.Matrix(s.dtheta)
-    B = sp.diag(*[p.gear[i] * p.Kt[i] / p.R[i] for i in range(n)])
+    B = sp.diag(*[a.gain for a in arm.actuators])
     return Dynamics(sym=s, params=p, bodies=bodies, J=J, bias=bias, damping=damping, G=G, B=B,
                     gravity=gravity)
 

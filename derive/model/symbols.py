@@ -6,11 +6,10 @@ fields, so they are plain ASCII identifiers: ``theta1``, ``dtheta1``, ``m1``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 
 import sympy as sp
 
-from derive.model.spec import Arm
+from derive.model.spec import Arm, controller_parameters
 
 
 def _vec(prefix: str, n: int, **assumptions: bool) -> tuple[sp.Symbol, ...]:
@@ -44,52 +43,49 @@ class JointSymbols:
 
 @dataclass(frozen=True)
 class ParamSymbols:
-    """Physical parameter symbols of an arm, with the arm's exact values.
+    """The parameters of a planar arm (the old lumped planar dynamics' view of
+    :attr:`Arm.parameters`), with the arm's exact values.
 
-    ``values`` pairs each symbol with its Rational value, in canonical order:
-    links, point masses, motors, gravity.
+    Each field is a tuple of SymPy expressions in the parameter symbols: a
+    symbol where the file gave the value, else the expression the default is
+    (com = l/2, a uniform rod's inertia m l^2/12). Kt, Kv, R are None for a
+    torque-actuated joint. ``values`` pairs each parameter symbol with its
+    Rational value in :attr:`Arm.parameters` order, without the controller's.
     """
 
-    length: tuple[sp.Symbol, ...]
-    mass: tuple[sp.Symbol, ...]
-    com: tuple[sp.Symbol, ...]
-    inertia: tuple[sp.Symbol, ...]
-    friction: tuple[sp.Symbol, ...]
-    pm_mass: tuple[sp.Symbol, ...]
-    pm_distance: tuple[sp.Symbol, ...]
-    pm_inertia: tuple[sp.Symbol, ...]
-    Kt: tuple[sp.Symbol, ...]
-    Kv: tuple[sp.Symbol, ...]
-    R: tuple[sp.Symbol, ...]
-    gear: tuple[sp.Symbol, ...]
-    Jm: tuple[sp.Symbol, ...]
+    length: tuple[sp.Expr, ...]
+    mass: tuple[sp.Expr, ...]
+    com: tuple[sp.Expr, ...]
+    inertia: tuple[sp.Expr, ...]
+    friction: tuple[sp.Expr, ...]
+    pm_mass: tuple[sp.Expr, ...]
+    pm_distance: tuple[sp.Expr, ...]
+    pm_inertia: tuple[sp.Expr, ...]
+    Kt: tuple[sp.Expr | None, ...]
+    Kv: tuple[sp.Expr | None, ...]
+    R: tuple[sp.Expr | None, ...]
+    gear: tuple[sp.Expr, ...]
+    Jm: tuple[sp.Expr, ...]
     g: sp.Symbol
     values: tuple[tuple[sp.Symbol, sp.Rational], ...]
 
     @staticmethod
     def make(arm: Arm) -> "ParamSymbols":
+        controller = {p.symbol for p in controller_parameters(arm.controller)}
+        params = [p for p in arm.parameters if p.symbol not in controller]
+        by = {p.symbol.name: p.symbol for p in params}
         n, k = arm.n, len(arm.point_masses)
-        pos = {"positive": True}
-        nonneg = {"nonnegative": True}
-        syms = dict(
-            length=_vec("l", n, **pos), mass=_vec("m", n, **pos), com=_vec("c", n, real=True),
-            inertia=_vec("Ic", n, **nonneg), friction=_vec("bv", n, **nonneg),
-            pm_mass=_vec("mp", k, **pos), pm_distance=_vec("rp", k, real=True),
-            pm_inertia=_vec("Ip", k, **nonneg),
-            Kt=_vec("Kt", n, **pos), Kv=_vec("Kv", n, **nonneg), R=_vec("Ra", n, **pos),
-            gear=_vec("gr", n, **pos), Jm=_vec("Jm", n, **nonneg), g=sp.Symbol("g", **nonneg))
-        L, P, M = arm.links, arm.point_masses, arm.motors
-        raw: list[tuple[sp.Symbol, Fraction]] = []
-        for name, attr, items in (("length", "length", L), ("mass", "mass", L), ("com", "com", L),
-                                  ("inertia", "inertia", L), ("friction", "viscous_friction", L),
-                                  ("pm_mass", "mass", P), ("pm_distance", "distance", P),
-                                  ("pm_inertia", "inertia", P), ("Kt", "torque_constant", M),
-                                  ("Kv", "voltage_constant", M), ("R", "resistance", M),
-                                  ("gear", "gear_ratio", M), ("Jm", "rotor_inertia", M)):
-            raw += [(s, getattr(item, attr)) for s, item in zip(syms[name], items)]
-        raw.append((syms["g"], arm.gravity))
-        values = tuple((s, sp.Rational(v.numerator, v.denominator)) for s, v in raw)
-        return ParamSymbols(**syms, values=values)
+
+        def vec(prefix: str, count: int, default=None) -> tuple:
+            return tuple(by.get(f"{prefix}{i}", default(i) if default else None) for i in range(1, count + 1))
+
+        length, mass = vec("l", n), vec("m", n)
+        return ParamSymbols(
+            length=length, mass=mass, com=vec("c", n, lambda i: length[i - 1] / 2),
+            inertia=vec("Ic", n, lambda i: mass[i - 1] * length[i - 1] ** 2 / 12), friction=vec("bv", n),
+            pm_mass=vec("mp", k), pm_distance=vec("rp", k), pm_inertia=vec("Ip", k),
+            Kt=vec("Kt", n), Kv=vec("Kv", n), R=vec("Ra", n), gear=vec("gr", n), Jm=vec("Jm", n), g=by["g"],
+            values=tuple((p.symbol, p.rational) for p in params))
 
     @property
     def subs(self) -> dict[sp.Symbol, sp.Rational]:

@@ -10,6 +10,38 @@ of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 and leaves its state and u untouched.
+
+Baked with the arm file's values (regenerate, or generate with --params
+runtime, to change them):
+    l1 = 0.38 m (link[1].length)
+    l2 = 0.38 m (link[2].length)
+    m1 = 0.361 kg (link[1].mass)
+    m2 = 0.361 kg (link[2].mass)
+    c1 = 0.19 m (link[1].com)
+    c2 = 0.19 m (link[2].com)
+    mp1 = 0.44 kg (point_mass[1].mass)
+    mp2 = 0.1 kg (point_mass[2].mass)
+    rp1 = 0.38 m (point_mass[1].distance)
+    rp2 = 0.38 m (point_mass[2].distance)
+    Ip1 = 0.0 kg m^2 (point_mass[1].inertia)
+    Ip2 = 0.0 kg m^2 (point_mass[2].inertia)
+    g = 0.0 m/s^2 (arm.gravity)
+    Kt1 = 0.23 N m/A (motor[1].torque_constant)
+    Kt2 = 0.044 N m/A (motor[2].torque_constant)
+    Kv1 = 0.29 V s/rad (motor[1].voltage_constant)
+    Kv2 = 0.047 V s/rad (motor[2].voltage_constant)
+    Ra1 = 3.4 ohm (motor[1].resistance)
+    Ra2 = 5.0 ohm (motor[2].resistance)
+    gr1 = 1.0 (motor[1].gear_ratio)
+    gr2 = 1.0 (motor[2].gear_ratio)
+    Jm1 = 0.0 kg m^2 (motor[1].rotor_inertia)
+    Jm2 = 0.0 kg m^2 (motor[2].rotor_inertia)
+    bv1 = 0.0 N m s/rad (link[1].viscous_friction)
+    bv2 = 0.0 N m s/rad (link[2].viscous_friction)
+    T1 = 0.0 s (controller.T1)
+    T2 = 0.8333333333333334 s (controller.T2)
+    w1 = 1.0 1/s (controller.w[1])
+    w2 = 2.0 1/s (controller.w[2])
 """
 from math import (cos as _cos, exp as _exp, isfinite as _isfinite, log as _log,  # noqa: F401
                   sin as _sin, sqrt as _sqrt, tan as _tan)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import difflib
+import json
 import os
 import subprocess
 import sys
@@ -18,6 +19,11 @@ from derive.model.spec import resolve_arm_path
 
 ROOT = Path(__file__).resolve().parent.parent
 FIX = "make generate   (or: .venv/bin/derive generate --out generated)"
+
+
+def _manifest(*paths: str) -> str:
+    """A manifest listing ``paths`` (what write_tree requires of its callers)."""
+    return json.dumps({"files": sorted(paths)}) + "\n"
 
 
 def _tree(folder: Path) -> dict[str, bytes]:
@@ -94,7 +100,7 @@ def test_failing_template_leaves_previous_output_untouched(tmp_path, monkeypatch
 
 def test_failing_write_leaves_previous_output_untouched(tmp_path, monkeypatch):
     target = tmp_path / "out"
-    write_tree(target, {"MANIFEST.json": "{}\n", "a.txt": "old\n"})
+    write_tree(target, {"MANIFEST.json": _manifest("a.txt"), "a.txt": "old\n"})
     real_open = open
 
     def broken_open(path, *args, **kwargs):
@@ -104,7 +110,7 @@ def test_failing_write_leaves_previous_output_untouched(tmp_path, monkeypatch):
 
     monkeypatch.setattr("builtins.open", broken_open)
     with pytest.raises(EmitError, match="write failed"):
-        write_tree(target, {"MANIFEST.json": "{}\n", "a.txt": "new\n", "b.txt": "x"})
+        write_tree(target, {"MANIFEST.json": _manifest("a.txt", "b.txt"), "a.txt": "new\n", "b.txt": "x"})
     monkeypatch.undo()
     assert (target / "a.txt").read_text() == "old\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
@@ -122,7 +128,7 @@ def test_output_folder_that_is_not_ours_is_refused(tmp_path, kind):
         target.mkdir()
         (target / "precious.txt").write_text("mine")
     with pytest.raises(EmitError, match="output folder"):
-        write_tree(target, {"MANIFEST.json": "{}\n"})
+        write_tree(target, {"MANIFEST.json": _manifest()})
 
 
 def test_generate_cli_reports_bad_output_folder_with_exit_2(tmp_path):
@@ -154,7 +160,7 @@ def test_output_folder_under_an_unsearchable_ancestor_gets_a_clear_error(tmp_pat
 
     monkeypatch.setattr(P, "lstat", refuse)
     with pytest.raises(EmitError, match="cannot inspect it"):
-        write_tree(tmp_path / "out", {"MANIFEST.json": "{}\n"})
+        write_tree(tmp_path / "out", {"MANIFEST.json": _manifest()})
 
 
 def test_unwritable_output_folder_gets_a_clear_error(tmp_path, monkeypatch):
@@ -166,7 +172,7 @@ def test_unwritable_output_folder_gets_a_clear_error(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tempfile, "mkdtemp", refuse)
     with pytest.raises(EmitError, match=r"output folder .*: cannot write in .*Permission denied"):
-        write_tree(tmp_path / "out", {"MANIFEST.json": "{}\n"})
+        write_tree(tmp_path / "out", {"MANIFEST.json": _manifest()})
     assert not (tmp_path / "out").exists()
 
 
@@ -191,7 +197,7 @@ def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
     for folder in (base / "pkg", pkg, pkg / "codegen"):
         folder.chmod(0o755)
     code = ("import sys; from derive.codegen.emit import write_tree; from derive.errors import EmitError\n"
-            "try:\n    write_tree(__import__('pathlib').Path(sys.argv[1]), {'MANIFEST.json': '{}'})\n"
+            "try:\n    write_tree(__import__('pathlib').Path(sys.argv[1]), {'MANIFEST.json': '{\"files\": []}'})\n"
             "except EmitError as e:\n    print(e); sys.exit(2)\n")
     cmd = [os.path.realpath(sys.executable), "-c", code, str(ro / "out")]
     if os.geteuid() == 0:

@@ -19,8 +19,7 @@ import pytest
 import sympy as sp
 
 from derive.cli import check
-from derive.proofs import arm as proofs_arm, paper as pp, project as proofs_project, report as check_render
-from derive.errors import EmitError
+from derive.proofs import arm as proofs_arm, paper as pp, project as proofs_project
 from derive.proofs.exact import Field, Undecidable
 from derive.dynamics.identities import is_zero
 from derive.proofs.core import Kind, Obligation, Outcome, Result, Status, equal, exit_code, positive, run
@@ -234,14 +233,12 @@ def test_field_zero_test_agrees_with_identities_trig_normal(expr):
 
 
 # -- rendering and the command line --------------------------------------------------------------------
-def test_write_text_failure_is_an_emit_error(tmp_path):
-    with pytest.raises(EmitError, match="cannot write"):
-        check_render.write_text(tmp_path / "missing" / "x.json", "{}")
 
 
 def _cli_check(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "derive", "check", *args], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)})
+                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)},
+                          preexec_fn=lambda: os.umask(0o022))
 
 
 def test_cli_check_paper_writes_json_and_report_without_an_arm(tmp_path):
@@ -267,6 +264,7 @@ def test_cli_check_paper_writes_json_and_report_without_an_arm(tmp_path):
     assert proc.stdout.startswith("derive check --paper (the paper's printed equations): 22 obligations: "
                                   "17 proved, 5 refuted (5 errata in the paper), 0 unproven, 0 n/a")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["check.json", "check.md"]
+    assert [out_json.stat().st_mode & 0o777, out_md.stat().st_mode & 0o777] == [0o644, 0o644]   # the umask's
 
 
 def test_cli_check_arm_runs_only_its_own_obligations(tmp_path):

@@ -74,7 +74,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Derive the arm, check its obligations (and the paper's with --paper), report;
     the exit code of the module docstring."""
-    from derive.proofs.report import render_json, render_markdown, render_text, write_text
+    from derive.codegen.emit import write_file
+    from derive.proofs.report import render_json, render_markdown, render_text
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
     from derive.model.spec import load_arm
@@ -92,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     code = exit_code(results)
     sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))
     if args.report is not None:
-        write_text(args.report, render_markdown(d, results, seconds, code))
+        write_file(args.report, render_markdown(d, results, seconds, code))
     if args.json is not None:
-        write_text(args.json, render_json(d, results, seconds, code))
+        write_file(args.json, render_json(d, results, seconds, code))
     return code

@@ -1,4 +1,4 @@
-"""``derive generate``: derive an arm and write generated/<arm>/ atomically."""
+"""``derive generate``: derive an arm and write generated/<arm>/ (derive's files as one set; others kept)."""
 from __future__ import annotations
 
 import sys
@@ -31,6 +31,7 @@ def run(args) -> int:
     report_warnings(d)
     files = generate_files(d, None, args.real, ParamsMode(args.params))  # hash of the bytes load_arm read
     target = Path(args.out) / arm.name
-    write_tree(target, files, keep=("sim",))  # derive simulate's results survive regeneration
-    print(f"derive: wrote {len(files)} files to {target}", file=sys.stderr)
+    done = write_tree(target, files)   # only derive's previous files are replaced; sim/, build/ stay
+    kept = f" (kept what derive did not write: {', '.join(done.kept)})" if done.kept else ""
+    print(f"derive: wrote {len(files)} files to {target}{kept}", file=sys.stderr)
     return 0

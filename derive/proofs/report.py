@@ -1,20 +1,17 @@
 """Rendering of ``derive check`` results: the terminal table, the Markdown report, the JSON record.
 
-Render to strings; :func:`write_text` is the one place that writes a file
-(atomically: a temporary sibling, then ``os.replace``).
+Render to strings; ``derive check`` writes them with
+:func:`derive.codegen.emit.write_file` (atomic, with the umask's permissions).
 """
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import sympy as sp
 
-from derive.errors import EmitError
 from derive.proofs.core import Counterexample, Kind, Result, Status
 
 if TYPE_CHECKING:
@@ -150,18 +147,3 @@ def render_markdown(d: Derivation | None, results: Sequence[Result], seconds: fl
         if o.evidence:
             out += [f"*Numeric evidence (not part of the status).* {o.evidence}.", ""]
     return "\n".join(out)
-
-
-def write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically; an EmitError names the file on failure."""
-    path = Path(path)
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
-        raise EmitError(f"{path}: cannot write ({exc.strerror or exc})") from None

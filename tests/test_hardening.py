@@ -7,6 +7,7 @@ gives finite results. It runs under -fsanitize=address,undefined and valgrind.
 """
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 from pathlib import Path
@@ -126,7 +127,8 @@ def test_random_valid_arms_derive_generate_and_match_the_symbolic_model(tmp_path
     arm = arm_from_dict(_valid_arm(n, data.draw), "<hypothesis>")
     d = derive.derive(arm)
     target = tmp_path_factory.mktemp("prop") / "prop_arm"
-    write_tree(target, python_files(d, ParamsMode.BAKED) | {"MANIFEST.json": "{}\n"})
+    files = python_files(d, ParamsMode.BAKED)
+    write_tree(target, files | {"MANIFEST.json": json.dumps({"files": sorted(files)})})
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("prop_arm_mod", target / "python" / "prop_arm.py")

@@ -10,7 +10,7 @@ import pytest
 
 import derive
 from derive.cli import main
-from derive.model.actuators import Actuation
+from derive.model.chain import Actuation
 
 URDF = Path(__file__).parent / "data" / "urdf"
 

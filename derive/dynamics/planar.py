@@ -23,6 +23,7 @@ from functools import cached_property
 import sympy as sp
 
 from derive.dynamics.identities import matrix_is_zero
+from derive.model.actuators import terms
 from derive.model.spec import Arm
 from derive.model.symbols import JointSymbols, ParamSymbols
 
@@ -189,7 +190,7 @@ def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.
         wi = sum(dq[: i + 1])
         T += m * (vx ** 2 + vy ** 2) / 2 + inertia * wi ** 2 / 2
         V -= m * p.g * (down[0] * x + down[1] * y)
-    T += sum(a.reflected_inertia * dq[i] ** 2 for i, a in enumerate(arm.actuators)) / 2
+    T += sum(terms(a)[2] * dq[i] ** 2 for i, a in enumerate(arm.actuators)) / 2
     dT = sp.Matrix([sp.diff(T, v) for v in dq])
     J = dT.jacobian(dq).applyfunc(sp.expand)
     G = dT.jacobian(q) * sp.Matrix(dq) - sp.Matrix([sp.diff(T - V, v) for v in q])
@@ -218,15 +219,16 @@ def derive_dynamics(arm: Arm) -> Dynamics:
         from derive.errors import DerivationError
         raise DerivationError(f"arm {arm.name}: the planar dynamics take [[link]] arms only; a DH or URDF "
                               "chain needs the spatial dynamics")
-    reflected = [a.reflected_inertia for a in arm.actuators]
+    drives = [terms(a) for a in arm.actuators]
+    reflected = [t[2] for t in drives]
     J = crba(bodies, s.theta, p.length, reflected)
     zero = [sp.Integer(0)] * n
     down = _down(arm)
     bias = rnea(bodies, s.theta, s.dtheta, zero, p.length, p.g, down)
     gravity = rnea(bodies, s.theta, zero, zero, p.length, p.g, down)
-    damping = sp.diag(*[a.damping for a in arm.actuators])
+    damping = sp.diag(*[t[1] for t in drives])
     G = bias + damping * sp.Matrix(s.dtheta)
-    B = sp.diag(*[a.gain for a in arm.actuators])
+    B = sp.diag(*[t[0] for t in drives])
     return Dynamics(sym=s, params=p, bodies=bodies, J=J, bias=bias, damping=damping, G=G, B=B,
                     gravity=gravity)
 

@@ -12,30 +12,22 @@ Every joint i has one drive, with input u_i (eq. 12: J theta'' + G = B (u + d)):
 
 Both add the joint's viscous friction bv to the damping and reflect the rotor
 inertia Jm onto J_ii as gr^2 Jm (the rotor's gyroscopic coupling with the
-carrying link is neglected). An :class:`Actuator` holds these three terms as
-SymPy expressions in parameter symbols; the dynamics (``derive.dynamics``)
-read B = diag(gain), G += diag(damping) theta', J += diag(reflected_inertia).
+carrying link is neglected). Each joint's
+:class:`~derive.model.chain.Actuator` (in :attr:`Chain.actuators`) holds its
+parameter symbols; :func:`terms` gives B_ii, the damping and gr^2 Jm.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
 from fractions import Fraction
 from typing import Any
 
 import sympy as sp
 
-from derive.model.chain import Parameter
+from derive.model.chain import Actuation, Actuator, Parameter
 from derive.model.fields import NONNEGATIVE, POSITIVE, Num, Reader
 
 _ZERO = Fraction(0)
-
-
-class Actuation(str, Enum):
-    """What the controller's output u drives."""
-
-    VOLTAGE = "voltage"   # a DC motor's armature voltage [V]
-    TORQUE = "torque"     # a motor torque [N m] (joint torque / gear ratio)
 
 
 @dataclass(frozen=True)
@@ -62,21 +54,13 @@ class Motor:
         return self.voltage_limit if self.actuation is Actuation.VOLTAGE else self.torque_limit
 
 
-@dataclass(frozen=True)
-class Actuator:
-    """The drive of one joint, in parameter symbols (eq. 12).
-
-    gain: B_ii [N m/V or 1]; damping: the joint's viscous damping including
-    back-EMF [N m s/rad]; reflected_inertia: gr^2 Jm added to J_ii [kg m^2];
-    limit: the bound on |u_i| (None: none); field: the arm-file table.
-    """
-
-    actuation: Actuation
-    gain: sp.Expr
-    damping: sp.Expr
-    reflected_inertia: sp.Expr
-    limit: Fraction | None
-    field: str
+def terms(act: Actuator) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
+    """(B_ii, damping, reflected rotor inertia) of one drive (eq. 12; module docstring)."""
+    gr = act.gear_ratio
+    if act.actuation is Actuation.VOLTAGE:
+        kt, kv, ra = act.torque_constant, act.voltage_constant, act.resistance
+        return gr * kt / ra, gr ** 2 * kt * kv / ra + act.viscous_friction, gr ** 2 * act.rotor_inertia
+    return gr, act.viscous_friction, gr ** 2 * act.rotor_inertia
 
 
 def _sym(name: str, **assumptions: bool) -> sp.Symbol:
@@ -86,7 +70,8 @@ def _sym(name: str, **assumptions: bool) -> sp.Symbol:
 def actuator(i: int, motor: Motor, friction: Fraction, friction_field: str,
              friction_doc: str = "") -> tuple[Actuator, tuple[Parameter, ...]]:
     """Joint i's (1-based) actuator and its parameters, named as the generated code
-    names them (Kt1, Kv1, Ra1, gr1, Jm1, bv1)."""
+    names them (Kt1, Kv1, Ra1, gr1, Jm1, bv1). The bound on |u_i| stays on the
+    Motor (:attr:`Motor.input_limit`)."""
     f = f"motor[{i}]"
     pos, nonneg = {"positive": True}, {"nonnegative": True}
 
@@ -101,12 +86,9 @@ def actuator(i: int, motor: Motor, friction: Fraction, friction_field: str,
         Kv = param("Kv", motor.voltage_constant, "V s/rad", f"{f}.voltage_constant",
                    f"voltage constant of motor {i}", **nonneg)
         Ra = param("Ra", motor.resistance, "ohm", f"{f}.resistance", f"armature resistance of motor {i}", **pos)
-        g, kt, kv, ra, jm, b = gr.symbol, Kt.symbol, Kv.symbol, Ra.symbol, Jm.symbol, bv.symbol
-        act = Actuator(Actuation.VOLTAGE, g * kt / ra, g ** 2 * kt * kv / ra + b, g ** 2 * jm,
-                       motor.input_limit, f)
+        act = Actuator(Actuation.VOLTAGE, gr.symbol, Jm.symbol, bv.symbol, Kt.symbol, Kv.symbol, Ra.symbol)
         return act, (Kt, Kv, Ra, gr, Jm, bv)
-    g, jm, b = gr.symbol, Jm.symbol, bv.symbol
-    return Actuator(Actuation.TORQUE, g, b, g ** 2 * jm, motor.input_limit, f), (gr, Jm, bv)
+    return Actuator(Actuation.TORQUE, gr.symbol, Jm.symbol, bv.symbol), (gr, Jm, bv)
 
 
 # -- reading [[motor]] ----------------------------------------------------------------------

@@ -21,6 +21,8 @@ Frames and conventions (URDF's, so that a URDF maps one to one):
   symbols (so a runtime parameter changes everything derived from it).
 * ``gravity`` is the acceleration of free fall in the base frame (e.g.
   (0, -g, 0) for a planar arm whose gravity acts along -y).
+* ``actuators[i]`` drives joint i (:class:`Actuator`): the input u_i is a motor
+  voltage (the paper's DC motor, eq. 11-12) or a motor torque (section 4.1).
 
 Entries are exact (SymPy Integers, Rationals, and exact values such as
 cos(pi/3)) wherever the input is exact; parameter symbols stand for the
@@ -122,15 +124,44 @@ class Body:
     inertia: sp.ImmutableMatrix
 
 
+class Actuation(str, Enum):
+    """What the input u_i of a joint is."""
+
+    VOLTAGE = "voltage"   # armature voltage of a DC motor, inductance neglected (the paper's model)
+    TORQUE = "torque"     # motor torque before the gear (section 4.1 allows u to be a torque)
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """The drive of one moving joint, in parameter symbols.
+
+    A motor behind a gear of ratio gr (joint torque = gr x motor torque,
+    motor speed = gr x joint speed), rotor inertia Jm (reflected as gr^2 Jm
+    onto the joint), viscous joint friction bv [N m s/rad, or N s/m for a
+    prismatic joint]. VOLTAGE: torque constant Kt [N m/A], back-EMF constant
+    Kv [V s/rad], armature resistance Ra [ohm], so the joint torque is
+    gr Kt (u - gr Kv q') / Ra: B_ii = gr Kt / Ra, damping gr^2 Kt Kv / Ra + bv.
+    TORQUE: the three are None; B_ii = gr, damping bv.
+    """
+
+    actuation: Actuation
+    gear_ratio: sp.Expr
+    rotor_inertia: sp.Expr
+    viscous_friction: sp.Expr
+    torque_constant: sp.Expr | None = None
+    voltage_constant: sp.Expr | None = None
+    resistance: sp.Expr | None = None
+
+
 @dataclass(frozen=True)
 class Chain:
     """A serial chain of n >= 1 moving joints from a base to a tip.
 
-    joints[i] moves bodies[i]; gravity: 3 x 1 in the base frame [m/s^2];
-    parameters: every symbol the joints, bodies and gravity use, in canonical
-    order, with its value; notes: what normalisation did to the input
-    (axes normalised, fixed joints merged, off-chain joints locked), one
-    sentence each, for the user.
+    joints[i] moves bodies[i] and is driven by actuators[i]; gravity: 3 x 1 in
+    the base frame [m/s^2]; parameters: every symbol the joints, bodies,
+    actuators and gravity use, in canonical order, with its value; notes: what
+    normalisation did to the input (axes normalised, fixed joints merged,
+    off-chain joints locked), one sentence each, for the user.
     """
 
     joints: tuple[Joint, ...]
@@ -138,6 +169,7 @@ class Chain:
     gravity: sp.ImmutableMatrix
     parameters: tuple[Parameter, ...]
     notes: tuple[str, ...] = ()
+    actuators: tuple[Actuator, ...] = ()
 
     @property
     def n(self) -> int:

@@ -44,8 +44,8 @@ from typing import Any
 import sympy as sp
 
 from derive.errors import Problem, SpecError
-from derive.model.actuators import Actuation, Actuator, Motor, actuation_value, actuator, read_motors
-from derive.model.chain import Chain, Parameter
+from derive.model.actuators import Motor, actuation_value, actuator, read_motors, terms
+from derive.model.chain import Actuation, Actuator, Chain, Parameter
 from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show, text_problem
 from derive.model.names import name_check
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
@@ -104,10 +104,12 @@ class Arm:
 
     @property
     def chain(self) -> Chain:
-        """The normalised kinematic chain (bodies, joints, gravity) the dynamics read."""
-        if self.spatial is not None:
-            return self.spatial
-        return _planar(self.links, self.point_masses, self.gravity, self.gravity_direction)
+        """The normalised kinematic chain (bodies, joints, drives, gravity) the dynamics read;
+        its parameters are the arm's without the controller's."""
+        base = self.spatial if self.spatial is not None else _planar(
+            self.links, self.point_masses, self.gravity, self.gravity_direction)
+        actuators, drives = _drives(self.motors, self._frictions())
+        return replace(base, actuators=actuators, parameters=base.parameters + drives)
 
     def _frictions(self) -> tuple[tuple[Fraction, str], ...]:
         if self.spatial is not None:
@@ -116,15 +118,16 @@ class Arm:
 
     @property
     def actuators(self) -> tuple[Actuator, ...]:
-        """The drive of each joint (B, damping, reflected rotor inertia; eq. 12)."""
+        """The drive of each joint (its parameter symbols; derive.model.actuators.terms gives
+        B_ii, the damping and the reflected rotor inertia, eq. 12)."""
         return _drives(self.motors, self._frictions())[0]
 
     @property
     def parameters(self) -> tuple[Parameter, ...]:
-        """Every runtime parameter, in canonical order: the chain's, the drives'
-        (grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the controller's (T1, T2, w)."""
-        return self.chain.parameters + _drives(self.motors, self._frictions())[1] + controller_parameters(
-            self.controller)
+        """Every runtime parameter, in canonical order: the chain's (its bodies' and
+        gravity, then the drives' grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the
+        controller's (T1, T2, w)."""
+        return self.chain.parameters + controller_parameters(self.controller)
 
 
 T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
@@ -376,7 +379,7 @@ def _direction(r: Reader, value: Any, size: int) -> tuple[Fraction, ...] | None:
 def _moves_inertia(r: Reader, arm: Arm) -> None:
     """Every joint must move some inertia at q = 0, else J is singular (issue 10, item 7)."""
     values = {p.symbol: p.rational for p in arm.parameters}
-    found = unmoved_joint(arm.chain, [a.reflected_inertia for a in arm.actuators], values)
+    found = unmoved_joint(arm.chain, [terms(a)[2] for a in arm.actuators], values)
     if found is None:
         return
     i, everywhere = found

@@ -4,6 +4,7 @@ against Pinocchio (the chain's J(q) and gravity torque, computed from the chain
 alone by tests/chainnum.py)."""
 from __future__ import annotations
 
+import functools
 import math
 from fractions import Fraction
 from pathlib import Path
@@ -30,6 +31,17 @@ HALF_PI = "1.5707963267948966"
 
 def load(name_or_path, base: str | None = None, tip: str | None = None, locked: dict | None = None, g: str = "9.81"):
     """The UrdfChain of a vendored URDF (by name) or a file; problems raise AssertionError."""
+    if isinstance(name_or_path, str) and base is None and locked is None:
+        return _vendored(name_or_path)
+    return _load(name_or_path, base, tip, locked, g)
+
+
+@functools.lru_cache(maxsize=None)
+def _vendored(name: str):
+    return _load(name, None, None, None, "9.81")
+
+
+def _load(name_or_path, base, tip, locked, g):
     path = URDF / f"{name_or_path}.urdf" if isinstance(name_or_path, str) else name_or_path
     if base is None:
         base, tip = ENDS[name_or_path]
@@ -338,3 +350,16 @@ def test_dh_prismatic_joint_moves_along_z():
     R, p = num.poses(np.array([0.0, 0.3]))[1]
     assert np.allclose(p, [0.2, 0.4, 0.0], atol=1e-15)
     assert abs(num.gravity_torque(np.array([0.0, 0.3]))[1]) <= 1e-15   # the slide is horizontal here
+
+
+@pytest.mark.parametrize("name, n", [("panda", 7), ("ur5", 6), ("kinova", 6), ("double_pendulum", 2),
+                                     ("synthetic", 4)])
+def test_example_arm_files_load(name: str, n: int):
+    """tests/data/urdf/<name>.toml (written by derive init): torque-actuated arms of n joints."""
+    import derive
+    from derive.model.chain import Actuation
+
+    arm = derive.load_arm(URDF / f"{name}.toml")
+    assert arm.n == n and arm.name == name
+    assert all(a.actuation is Actuation.TORQUE for a in arm.actuators)
+    assert arm.chain.gravity[2] == -arm.chain.parameters[10 * n].symbol   # g along -z of the base

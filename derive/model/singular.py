@@ -21,6 +21,8 @@ singularity, which the dynamics' numeric check reports.)
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import sympy as sp
 
 from derive.model.chain import Body, Chain, JointType, Transform
@@ -45,14 +47,21 @@ def composite(bodies: list[Body], chain: Chain, i: int, q: list[sp.Expr]) -> Bod
     return total
 
 
-def axial_inertia(chain: Chain, i: int, reflected: sp.Expr, values: dict, q: list[sp.Expr]) -> sp.Expr:
-    """J_ii at joint values ``q`` with the parameter ``values`` put in."""
-    bodies = [Body(sp.sympify(b.mass).xreplace(values), b.first_moment.xreplace(values), b.inertia.xreplace(values))
-              for b in chain.bodies]
+def axial_inertia(chain: Chain, i: int, reflected: sp.Expr, values: dict, q: list[sp.Expr],
+                  digits: int | None = None) -> sp.Expr:
+    """J_ii at joint values ``q`` with the parameter ``values`` put in; exact, or in
+    ``digits``-digit floats (origins with cos/sin of decimal angles swell when expanded exactly)."""
+    def num(x):
+        x = x.xreplace(values)
+        return x.evalf(digits) if digits else x
+    if digits:
+        chain = Chain(tuple(replace(j, origin=Transform(num(j.origin.R), num(j.origin.p)), axis=num(j.axis))
+                            for j in chain.joints), chain.bodies, chain.gravity, chain.parameters)
+    bodies = [Body(num(sp.sympify(b.mass)), num(b.first_moment), num(b.inertia)) for b in chain.bodies]
     body = composite(bodies, chain, i, q)
     a = sp.Matrix(chain.joints[i].axis)
     moved = body.mass if chain.joints[i].type is JointType.PRISMATIC else (a.T * body.inertia * a)[0, 0]
-    return sp.expand(moved + sp.sympify(reflected).xreplace(values))
+    return sp.expand(moved + num(sp.sympify(reflected)))
 
 
 def _identically_zero(expr: sp.Expr, angles: list[sp.Symbol]) -> bool:
@@ -83,7 +92,11 @@ def unmoved_joint(chain: Chain, reflected: list[sp.Expr],
     values = chain.values() if values is None else values
     n = chain.n
     zero = [sp.Integer(0)] * n
+    scale = 1 + sum(abs(float(sp.sympify(b.mass).xreplace(values))) for b in chain.bodies)
     for i in range(n):
+        # 50 digits decide every J_ii(0) clearly away from 0; exact arithmetic the rest
+        if abs(axial_inertia(chain, i, reflected[i], values, zero, 50)) > 1e-30 * scale:
+            continue
         if not _is_zero(axial_inertia(chain, i, reflected[i], values, zero)):
             continue
         angles = [sp.Symbol(f"q{j + 1}", real=True) for j in range(n)]

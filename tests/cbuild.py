@@ -76,6 +76,12 @@ class CLib:
         code, u = self._call_u(f"{form}_step", x, state, dt)
         return code, u, np.array(state[:])
 
+    def estimate(self, state_values, x):
+        """(code, dhat) of dobc_estimate at DOBC state z = state_values (eq. 22)."""
+        dhat = (self.ct * self.n)()
+        code = self.fn("dobc_estimate")(*self._p(), self._arr(state_values), self._arr(x), dhat)
+        return code, np.array(dhat[:])
+
     def init(self, form: str, x):
         state = (self.ct * self.n)()
         code = self.fn(f"{form}_init")(*self._p(), state, self._arr(x))

@@ -77,6 +77,7 @@ def _compare(impl, ref, states, tol, dt=1e-3):
             "gains P,D,I": (impl.gains(x[:n]), ref.gains(x[:n])),
             "mpc_step u": (impl.mpc_step(x)[1], ref.mpc_step(x)),
             "dobc_init z0": (impl.init("dobc", x)[1], ref.dobc_init(x)),
+            "dobc_estimate dhat (eq. 22)": (impl.estimate(z, x)[1], ref.dhat(x, z)),
         }
         code, u, nxt = impl.step("npid", int_e, x, dt)
         ru, rn = ref.npid_step(int_e, x, dt)
@@ -110,6 +111,13 @@ class PyImpl:
 
     def mpc_step(self, x):
         return self.m.mpc_step(self._inp(x))
+
+    def estimate(self, values, x):
+        state = self.m.DobcState()
+        state.z = list(values)
+        code, dhat = self.m.dobc_estimate(state, self._inp(x))
+        assert list(state.z) == list(values)
+        return code, dhat
 
     def init(self, form, x):
         state = self.m.NpidState() if form == "npid" else self.m.DobcState()
@@ -254,6 +262,7 @@ def test_nonfinite_input_returns_error_and_leaves_state_untouched(tmp_path, stat
                 assert code == 1 and list(nxt) == list(s), (form, i, bad)
             assert lib.mpc_step(xb)[0] == 1
             assert lib.init("dobc", xb)[0] == 1
+            assert lib.estimate(z, xb)[0] == 1
         for dt in (0.0, -1e-3, bad):
             code, _, nxt = lib.step("npid", int_e, x, dt)
             assert code == 2 and list(nxt) == list(int_e)

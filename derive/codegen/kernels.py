@@ -98,7 +98,8 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
     npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
     observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
-    from the derived dhat(0); x = (theta, theta', yd, yd', yd''), p = parameters
+    from the derived dhat(0); dhat(theta', z) -> the estimate dhat (eq. 22);
+    x = (theta, theta', yd, yd', yd''), p = parameters
     (runtime). The discretisation is part of the maths: forward Euler,
     int_next = int_e + dt e and z_next = z + dt z'; the glue only chooses
     (an integrator held at a voltage limit keeps int_e).
@@ -148,4 +149,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
             Port("z0", _flat(value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)),
                  "z(0) = B dhat(0) - W theta'(0)"),),
             "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"),
+        KernelSpec("dhat", (dtheta, z, *params), (
+            Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
+            "Disturbance estimate of the observer state (eq. 22)"),
     )

@@ -41,6 +41,7 @@ class Reference:
         self._J = fn(list(s.theta), d.J)
         self._rhs = fn(list(s.theta + s.dtheta + s.z + s.u), d.numeric(d.observer.J_solve_rhs))
         self._W = mpmath.matrix(d.W.tolist())
+        self._dhat = fn(list(s.dtheta + s.z), d.dhat)
         self._z0 = fn(x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
         limits = u_max if u_max is not None else [
             float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors]
@@ -70,6 +71,12 @@ class Reference:
         with mpmath.workdps(DIGITS):
             y = mpmath.lu_solve(self._J(*theta), self._rhs(*theta, *dtheta, *z, *u))
             return self._vec(self._W * y)
+
+    def dhat(self, x, z):
+        """The estimate dhat = B^-1 (z + W theta') (eq. 22) at input x, state z."""
+        with mpmath.workdps(DIGITS):
+            n = self.n
+            return self._vec(self._dhat(*x[n:2 * n], *z))
 
     def dobc_init(self, x):
         with mpmath.workdps(DIGITS):

@@ -89,7 +89,7 @@ _GENERATED_PATTERN = re.compile(
 GENERATED_SUFFIXES = frozenset("""
 real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state
 dobc_init dobc_step kernels kernel_gains kernel_mpc kernel_npid kernel_dobc kernel_observer
-kernel_dobc_init selftest h n np ok enonfinite edt kernels_h
+kernel_dobc_init dobc_estimate kernel_dhat selftest h n np ok enonfinite edt kernels_h
 """.split())
 # A name ending in _<tail> would make the same names as the arm without it: arm x_kernel's
 # x_kernel_gains is arm x's kernel; x_kernels.h and the x_selftest target are arm x's files.

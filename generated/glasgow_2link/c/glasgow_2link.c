@@ -96,3 +96,14 @@ int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_inp
     for (i = 0; i < N; ++i) { s->z[i] = next[i]; u[i] = v[i]; }
     return GLASGOW_2LINK_OK;
 }
+
+int glasgow_2link_dobc_estimate(const glasgow_2link_dobc_state *s, const glasgow_2link_input *in, real dhat[N])
+{
+    real v[N];
+    int i;
+    if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
+    glasgow_2link_kernel_dhat(in->dtheta, s->z, v);
+    if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
+    for (i = 0; i < N; ++i) dhat[i] = v[i];
+    return GLASGOW_2LINK_OK;
+}

@@ -5,6 +5,7 @@
  * nonlinear PID" for an arm J(theta) theta'' + G(theta, theta') = B (u + d) (eq. 12):
  *   glasgow_2link_mpc_step   predictive law u* (eq. 15)
  *   glasgow_2link_dobc_step  u = u* - dhat with the disturbance observer (eq. 21-27)
+ *   glasgow_2link_dobc_estimate  the estimate dhat of an observer state (eq. 22)
  *   glasgow_2link_npid_step  u = P e + D e' + I int e + N (eq. 34-38)
  *   glasgow_2link_gains      P(theta), D(theta), I (eq. 35-37)
  *
@@ -90,6 +91,10 @@ int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_inp
 /* z(0) = B dhat(0) - W theta'(0) with the derived dhat(0): equal to the NPID form. */
 int glasgow_2link_dobc_init(glasgow_2link_dobc_state *s, const glasgow_2link_input *in);
 int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2]);
+
+/* The disturbance estimate dhat = B^-1 (z + W theta') (eq. 22) of state s at input
+ * in: the estimate the next dobc_step from s uses; s is not changed. */
+int glasgow_2link_dobc_estimate(const glasgow_2link_dobc_state *s, const glasgow_2link_input *in, glasgow_2link_real dhat[2]);
 
 #ifdef __cplusplus
 }

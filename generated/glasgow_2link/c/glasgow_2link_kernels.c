@@ -518,3 +518,26 @@ void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const gla
     z0[1] = a2;
 }
 
+/* Disturbance estimate of the observer state (eq. 22); 8 operations. */
+void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], glasgow_2link_real dhat[2])
+{
+    glasgow_2link_real a0, a1, a2, a3;
+    a0 = 14.782608695652174;
+    a1 = dtheta[0];
+    a2 = a0 * a1;
+    a3 = z[0];
+    a0 = a0 * a3;
+    a2 = a2 + a0;
+    dhat[0] = a2;
+    a2 = 113.63636363636364;
+    a1 = a2 * a1;
+    a0 = z[1];
+    a2 = a2 * a0;
+    a1 = a1 + a2;
+    a2 = 227.27272727272728;
+    a0 = dtheta[1];
+    a2 = a2 * a0;
+    a1 = a1 + a2;
+    dhat[1] = a1;
+}
+

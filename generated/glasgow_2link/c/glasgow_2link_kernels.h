@@ -17,5 +17,7 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
 void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);
 /* Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31) */
 void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], glasgow_2link_real z0[2]);
+/* Disturbance estimate of the observer state (eq. 22) */
+void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], glasgow_2link_real dhat[2]);
 
 #endif /* GLASGOW_2LINK_KERNELS_H */

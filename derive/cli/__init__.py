@@ -21,6 +21,7 @@ COMMANDS = {
     "embedded": ("derive.embedded.qemu", "cross-compile and run the C controller on emulated Cortex-M boards"),
     "simulate": ("derive.cli.simulate", "simulate the arm in closed loop under the generated controllers"),
     "init": ("derive.cli.init", "write a starter arm file for a URDF (then: derive generate it)"),
+    "fmu": ("derive.cli.fmu", "package a controller form as a co-simulation FMU (FMI 2.0 or 3.0)"),
 }
 
 

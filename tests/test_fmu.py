@@ -1,0 +1,337 @@
+"""The controller as an FMU (issue 14): validated by fmpy, simulated by fmpy
+against the generated Python module, error handling of the C API, sources that
+compile on their own, deterministic archives, bad options.
+
+Each FMU variant is built once per session (fixture ``fmus``); simulations are
+short (100 samples)."""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import math
+import re
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+from fmpy.validation import validate_fmu
+
+import derive
+from derive.cli import main
+from derive.codegen import testvectors as tv
+from derive.codegen.files import python_files
+from derive.codegen.forms import FORMS
+from derive.codegen.kernels import ParamsMode
+from derive.codegen.views import arm_view
+from derive.errors import DeriveError, EmitError
+from derive.fmu import FmuOptions, check_options, controller_fmu, write_fmus
+from derive.fmu.units import fmi_unit
+
+from .cbuild import STRICT, compilers
+
+ROOT = Path(__file__).resolve().parent.parent
+STEPS = 100
+DT = 0.002
+# (FMI version, real, form, params): every version x real, every form, both parameter modes
+VARIANTS = [(3, "double", "npid", "runtime"), (3, "float", "dobc", "baked"), (2, "double", "dobc", "runtime"),
+            (2, "float", "npid", "baked"), (3, "double", "mpc", "runtime"), (3, "double", "dobc", "runtime")]
+
+
+def _id(v) -> str:
+    return "fmi{}-{}-{}-{}".format(*v)
+
+
+@pytest.fixture(scope="session")
+def paper():
+    return derive.derive(derive.load_arm())
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("fmus")
+
+
+_BUILT: dict = {}
+
+
+def _fmu(paper, fmu_dir, variant) -> Path:
+    """Build ``variant`` once per session; the path of its .fmu."""
+    if variant not in _BUILT:
+        fmi, real, form, params = variant
+        name, data = controller_fmu(paper, FmuOptions(fmi, form, real, ParamsMode(params)))
+        path = fmu_dir / _id(variant) / name
+        path.parent.mkdir()
+        path.write_bytes(data)
+        _BUILT[variant] = path
+    return _BUILT[variant]
+
+
+@pytest.fixture(scope="session")
+def module(tmp_path_factory, paper):
+    """The generated Python module (double, runtime parameters): the reference."""
+    folder = tmp_path_factory.mktemp("py")
+    path = folder / "paper_runtime.py"
+    path.write_text(python_files(paper, ParamsMode.RUNTIME)[f"python/{paper.arm.name}.py"])
+    spec = importlib.util.spec_from_file_location("paper_runtime", path)
+    m = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(m)
+    return m
+
+
+def _inputs(n: int, steps: int, seed: int = 14) -> np.ndarray:
+    """steps x 5n inputs (theta, theta', yd, yd', yd'') as the codegen tests draw them."""
+    rng = np.random.default_rng(seed)
+    return np.hstack([rng.uniform(-3, 3, (steps, 3 * n)), rng.uniform(-2, 2, (steps, n)),
+                      rng.uniform(-5, 5, (steps, n))])
+
+
+def _reference(m, form: str, X: np.ndarray, dt: float, params=None):
+    """u (and dhat for forms that estimate it) of the Python module along X."""
+    n = m.N
+    p = params or m.Params()
+    s = {"npid": m.NpidState, "dobc": m.DobcState}.get(form)
+    s = s() if s else None
+    us, dhats = [], []
+    for k, x in enumerate(X):
+        inp = m.Input(*(list(x[i * n:(i + 1) * n]) for i in range(5)))
+        if s is None:
+            code, u = m.mpc_step(p, inp)
+        else:
+            if k == 0:
+                assert getattr(m, f"{form}_init")(p, s, inp) == 0
+            if FORMS[form].estimate:
+                code, dhat = getattr(m, f"{form}_estimate")(p, s, inp)
+                assert code == 0
+                dhats.append(dhat)
+            code, u = getattr(m, f"{form}_step")(p, s, inp, dt)
+        assert code == 0
+        us.append(u)
+    return np.array(us), (np.array(dhats) if dhats else None)
+
+
+def _signal(md, X: np.ndarray, dt: float) -> np.ndarray:
+    names = [v.name for v in md.modelVariables if v.causality == "input"]
+    rows = [tuple([k * dt, *X[min(k, len(X) - 1)]]) for k in range(len(X) + 1)]
+    return np.array(rows, dtype=[("time", float)] + [(name, float) for name in names])
+
+
+@pytest.mark.parametrize("variant", VARIANTS[:4], ids=_id)
+def test_fmpy_validates_the_fmu(paper, fmu_dir, variant):
+    path = _fmu(paper, fmu_dir, variant)
+    assert validate_fmu(str(path)) == []
+    md = read_model_description(str(path))
+    assert md.fmiVersion == f"{variant[0]}.0"
+    names = {v.name: v for v in md.modelVariables}
+    assert {f"{p}[{i}]" for p in ("theta", "dtheta", "yd", "dyd", "ddyd") for i in (1, 2)} <= set(names)
+    assert names["u[1]"].causality == "output" and names["u[1]"].unit == "V"
+    assert ("dhat[1]" in names) == FORMS[variant[2]].estimate
+    assert "eq. 22" in names["dhat[1]"].description if "dhat[1]" in names else True
+    assert names["m1"].unit == "kg" and names["m1"].start == "0.361"
+    assert names["m1"].causality == ("parameter" if variant[3] == "runtime" else "local")
+    assert float(md.defaultExperiment.stepSize) == paper.arm.simulation.sample_time
+    if variant[0] == 3:
+        real = "Float32" if variant[1] == "float" else "Float64"
+        assert names["u[1]"].type == real and names["time"].causality == "independent"
+
+
+@pytest.mark.parametrize("variant", VARIANTS[:4], ids=_id)
+def test_fmu_simulated_by_fmpy_equals_the_generated_python_module(paper, fmu_dir, module, variant):
+    """Same inputs, 100 samples: double to 1e-12, float within the stated bound
+    16 (K + steps) 2^-24 for the form's K kernel operations (derive.codegen.testvectors).
+    A tunable parameter set through FMI is the module's parameter."""
+    fmi, real, form, params = variant
+    path = _fmu(paper, fmu_dir, variant)
+    md = read_model_description(str(path))
+    X = _inputs(paper.n, STEPS)
+    start = {"Kt1": 0.25, "u_max[2]": 30.0} if params == "runtime" else {}
+    p = module.Params()
+    p.Kt1, p.u_max = start.get("Kt1", p.Kt1), [p.u_max[0], start.get("u_max[2]", p.u_max[1])]
+    outputs = ["u[1]", "u[2]"] + (["dhat[1]", "dhat[2]"] if FORMS[form].estimate else [])
+    res = simulate_fmu(str(path), start_time=0.0, stop_time=STEPS * DT, output_interval=DT,
+                       input=_signal(md, X, DT), output=outputs, start_values=start, fmi_type="CoSimulation")
+    u_ref, dhat_ref = _reference(module, form, X, DT, p)
+    # row k + 1 holds what the step at t_k computed (held over [t_k, t_k+1]); row 0 the start value 0
+    got = np.column_stack([res[name] for name in outputs])
+    assert np.all(got[0] == 0)
+    want = u_ref if dhat_ref is None else np.hstack([u_ref, dhat_ref])
+    if real == "double":
+        bound = tv.DOUBLE_TOL
+    else:
+        ops = {k.name: k.operations for k in arm_view(paper, "float", ParamsMode(params)).kernels}
+        kernels = {"npid": ("npid",), "dobc": ("dobc", "observer", "dhat"), "mpc": ("mpc",)}[form]
+        bound = tv.float_bound(sum(ops[k] for k in kernels), STEPS)
+    for k in range(STEPS):
+        for cols, name in ((slice(0, 2), "u"), (slice(2, 4), "dhat")):
+            w = want[k, cols]
+            if w.size == 0:
+                continue
+            err = np.max(np.abs(got[k + 1, cols] - w)) / max(np.max(np.abs(w)), 1e-300)
+            assert err <= bound, f"{_id(variant)}: {name} at step {k}: relative error {err:.3g} > {bound:.3g}"
+
+
+@pytest.mark.parametrize("fmi", [3, 2])
+def test_nonfinite_input_gives_an_error_status_and_leaves_state_and_outputs_unchanged(paper, fmu_dir, module,
+                                                                                       fmi, tmp_path):
+    variant = (fmi, "double", "dobc", "runtime")
+    path = _fmu(paper, fmu_dir, variant)
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    inputs = [vr[f"{p}[{i}]"] for p in ("theta", "dtheta", "yd", "dyd", "ddyd") for i in (1, 2)]
+    outputs = [vr[name] for name in ("u[1]", "u[2]", "dhat[1]", "dhat[2]")]
+    folder = tmp_path / "unzipped"
+    with zipfile.ZipFile(path) as z:
+        z.extractall(folder)
+    kind = FMU3Slave if fmi == 3 else FMU2Slave
+    fmu = kind(guid=md.guid, unzipDirectory=str(folder),
+               modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bad")
+    set_real = fmu.setFloat64 if fmi == 3 else fmu.setReal
+    get_real = fmu.getFloat64 if fmi == 3 else fmu.getReal
+    fmu.instantiate()
+    if fmi == 3:
+        fmu.enterInitializationMode(startTime=0.0)
+    else:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    X = _inputs(paper.n, 3, seed=7)
+    u_ref, dhat_ref = _reference(module, "dobc", X, DT)
+    set_real(inputs, list(X[0]))
+    fmu.doStep(0.0, DT)
+    before = get_real(outputs)
+    for bad in (math.nan, math.inf):
+        for i in range(len(inputs)):
+            x = list(X[1])
+            x[i] = bad
+            set_real(inputs, x)
+            with pytest.raises(Exception, match="fmi[23]DoStep|status|Error|error"):
+                fmu.doStep(DT, DT)
+            after = get_real(outputs)
+            assert after == before and all(map(math.isfinite, after)), (bad, i)
+    with pytest.raises(Exception):  # a step size that is no sample time
+        fmu.doStep(DT, 0.0)
+    set_real(inputs, list(X[1]))
+    fmu.doStep(DT, DT)  # the state was left as it was: the reference's second step
+    got = get_real(outputs)
+    np.testing.assert_allclose(got, list(u_ref[1]) + list(dhat_ref[1]), rtol=1e-12, atol=1e-12)
+    with pytest.raises(Exception):  # a parameter refuses a non-finite value
+        set_real([vr["m1"]], [math.nan])
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_wrong_instantiation_token_is_refused(paper, fmu_dir, tmp_path):
+    path = _fmu(paper, fmu_dir, VARIANTS[0])
+    md = read_model_description(str(path))
+    with zipfile.ZipFile(path) as z:
+        z.extractall(tmp_path)
+    fmu = FMU3Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=str(tmp_path), modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+    with pytest.raises(Exception, match="[Ff]ailed to instantiate"):
+        fmu.instantiate()
+    fmu.freeLibrary()
+
+
+@pytest.mark.parametrize("cc", compilers())
+@pytest.mark.parametrize("variant", [VARIANTS[1], VARIANTS[2]], ids=_id)
+def test_fmu_sources_compile_on_their_own_with_the_strict_flags(paper, fmu_dir, variant, cc, tmp_path):
+    with zipfile.ZipFile(_fmu(paper, fmu_dir, variant)) as z:
+        z.extractall(tmp_path)
+    src = tmp_path / "sources"
+    if variant[0] == 3:
+        listed = re.findall(r'<SourceFile name="([^"]+)"', (src / "buildDescription.xml").read_text())
+    else:
+        listed = re.findall(r'<File name="([^"]+)"', (tmp_path / "modelDescription.xml").read_text())
+    assert sorted(listed) == sorted(p.name for p in src.glob("*.c"))
+    cmd = [cc, *STRICT, "-shared", "-fPIC", "-o", str(tmp_path / "own.so"), *listed, "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=src)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_same_input_gives_the_same_bytes_and_the_token_follows_the_content(paper, fmu_dir):
+    variant = VARIANTS[0]
+    first = _fmu(paper, fmu_dir, variant).read_bytes()
+    name, again = controller_fmu(paper, FmuOptions(3, "npid", "double", ParamsMode.RUNTIME))
+    assert again == first
+    with zipfile.ZipFile(_fmu(paper, fmu_dir, variant)) as z:
+        infos = z.infolist()
+        assert [i.filename for i in infos] == sorted(i.filename for i in infos)
+        assert {i.date_time for i in infos} == {(1980, 1, 1, 0, 0, 0)}
+        manifest = json.loads(z.read("documentation/MANIFEST.json"))
+        for entry, digest in manifest["files"].items():
+            assert hashlib.sha256(z.read(entry)).hexdigest() == digest, entry
+        assert manifest["options"] == {"fmi": 3, "form": "npid", "real": "double", "params": "runtime",
+                                       "sample_time": None}
+        assert "binaries/x86_64-linux/glasgow_2link_npid.so" in manifest["files"]
+    tokens = {read_model_description(str(_fmu(paper, fmu_dir, v))).instantiationToken for v in VARIANTS[:2]}
+    assert len(tokens) == 2 and all(re.fullmatch(r"\{[0-9a-f]{8}(-[0-9a-f]{4}){3}-[0-9a-f]{12}\}", t)
+                                    for t in tokens)
+
+
+def test_fmi_headers_are_the_ones_the_readme_names():
+    folder = ROOT / "derive" / "fmu" / "headers"
+    table = dict(re.findall(r"\| `(fmi\d/\w+\.h)` \| [^|]+ \| `([0-9a-f]{64})` \|", (folder / "README.md").read_text()))
+    assert len(table) == 6
+    for rel, digest in table.items():
+        assert hashlib.sha256((folder / rel).read_bytes()).hexdigest() == digest, rel
+    assert "BSD" in (folder / "LICENSE.txt").read_text()
+
+
+def test_units_are_fmi_units_with_their_si_base():
+    assert fmi_unit("kg m^2").name == "kg.m2" and dict(fmi_unit("kg m^2").base) == {"kg": 1, "m": 2}
+    assert dict(fmi_unit("N m s/rad").base) == {"kg": 1, "m": 2, "s": -1, "rad": -1}
+    assert fmi_unit("V s/rad").name == "V.s/rad" and fmi_unit("1/s").name == "1/s"
+    assert fmi_unit("") is None
+    odd = fmi_unit("furlong")
+    assert odd.name == "furlong" and odd.base == () and not odd.known
+
+
+# --- bad input: one clear error, exit 2, nothing written ---------------------------------------
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--form", "pid", r"--form: expected one of npid, dobc, mpc, got 'pid'"),
+    ("--fmi", "4", r"--fmi: expected 2 or 3, got '4'"),
+    ("--real", "half", r"--real: expected one of double, float, got 'half'"),
+    ("--params", "lazy", r"--params: expected one of baked, runtime, got 'lazy'"),
+    ("--sample-time", "-0.001", r"--sample-time: expected a finite number of seconds > 0, got -0.001"),
+])
+def test_bad_option_is_one_clear_error_exit_2_nothing_written(option, value, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fmu", option, value, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err) and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists()
+    with pytest.raises(DeriveError, match=message):
+        check_options(**{"fmi": 3, "form": "npid", "real": "double", "params": "baked",
+                         option[2:].replace("-", "_"): float(value) if option == "--sample-time" else value})
+
+
+def test_output_folder_that_is_a_file_is_one_clear_error(tmp_path, capsys):
+    out = tmp_path / "taken"
+    out.write_text("mine")
+    assert main(["fmu", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"--out {out}: expected a folder, got a file" in err and err.count("\n") == 1
+    assert out.read_text() == "mine" and sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+    with pytest.raises(EmitError, match="expected a folder, got a file"):
+        write_fmus(out, {"x.fmu": b"data"})
+    (tmp_path / "dir" / "x.fmu").mkdir(parents=True)
+    with pytest.raises(EmitError, match="expected x.fmu to be a file or absent, got a folder"):
+        write_fmus(tmp_path / "dir", {"x.fmu": b"data"})
+
+
+def test_missing_compiler_is_one_clear_error(paper):
+    with pytest.raises(DeriveError, match="--cc: expected a C compiler on PATH, got 'no-such-cc'"):
+        controller_fmu(paper, FmuOptions(), cc="no-such-cc")
+
+
+def test_cli_writes_the_fmu_atomically(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fmu", "--form", "mpc", "--fmi", "2", "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["glasgow_2link_mpc.fmu"]
+    assert validate_fmu(str(out / "glasgow_2link_mpc.fmu")) == []

@@ -11,7 +11,8 @@ from derive.codegen.kernels import ParamsMode
 
 
 def add_arguments(parser) -> None:
-    """CLI: derive fmu [ARM] [--fmi 2|3] [--form F] [--real R] [--params P] [--sample-time S] [--out DIR]."""
+    """CLI: derive fmu [ARM] [--fmi 2|3] [--form F] [--real R] [--params P] [--sample-time S] [--plant]
+    [--out DIR] [--cc CC]."""
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
@@ -25,13 +26,16 @@ def add_arguments(parser) -> None:
                         help="the FMU's default communication step = the controller's sample time [s] "
                              "(default: the arm file's simulation.sample_time)")
     parser.add_argument("--out", default="fmu", help="folder the FMU is written to (default: fmu)")
+    parser.add_argument("--plant", action="store_true",
+                        help="also write <arm>_plant.fmu: the simulation plant of the arm's [simulation] section "
+                             "with the reference, whose outputs wire to the controller's inputs")
     parser.add_argument("--cc", default=None, help="host C compiler for the binary (default: $CC or cc)")
 
 
 def run(args) -> int:
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
-    from derive.fmu import check_options, controller_fmu, write_fmus
+    from derive.fmu import check_options, controller_fmu, plant_fmu, write_fmus
     from derive.model.spec import load_arm
 
     options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time)
@@ -42,9 +46,17 @@ def run(args) -> int:
     arm = load_arm(args.arm)
     d = derive(arm)
     report_warnings(d)
-    name, data = controller_fmu(d, options, args.cc or os.environ.get("CC") or "cc",
-                                Path(arm.source).read_bytes())
-    for path in write_fmus(out, {name: data}):
-        print(f"derive: wrote {path} (FMI {options.fmi}.0 co-simulation, form {options.form}, "
-              f"{options.real}, {options.params.value} parameters)", file=sys.stderr)
+    cc = args.cc or os.environ.get("CC") or "cc"
+    arm_bytes = Path(arm.source).read_bytes()
+    fmus = dict([controller_fmu(d, options, cc, arm_bytes)])
+    if args.plant:
+        s = arm.simulation
+        noisy = [k for k in ("velocity_noise", "position_noise") if any(getattr(s, k))]
+        noisy += ["tacho_filter_hz"] if s.tacho_filter_hz > 0 else []
+        if noisy:
+            print(f"derive: warning: the plant FMU has no sensor noise and no tachometer filter; "
+                  f"simulation.{', simulation.'.join(noisy)} of {arm.name} not included", file=sys.stderr)
+        fmus.update([plant_fmu(d, options.fmi, cc, arm_bytes, options.sample_time)])
+    for path in write_fmus(out, fmus):  # all built first: a failure writes nothing
+        print(f"derive: wrote {path} (FMI {options.fmi}.0 co-simulation)", file=sys.stderr)
     return 0

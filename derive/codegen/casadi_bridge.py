@@ -15,7 +15,7 @@ from derive.errors import DerivationError
 from derive.codegen.kernels import KernelSpec
 
 _FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, sp.exp: ca.exp,
-              sp.log: ca.log}
+              sp.log: ca.log, sp.tanh: ca.tanh}
 
 
 def _number(x: sp.Number) -> float:

@@ -29,12 +29,23 @@ _OPS: dict[int, tuple[str, str]] = {
     ca.OP_SIN: ("sin{f}({0})", "_sin({0})"),
     ca.OP_COS: ("cos{f}({0})", "_cos({0})"),
     ca.OP_TAN: ("tan{f}({0})", "_tan({0})"),
+    ca.OP_TANH: ("tanh{f}({0})", "_tanh({0})"),
     ca.OP_SQRT: ("sqrt{f}({0})", "_sqrt({0})"),
     ca.OP_FABS: ("fabs{f}({0})", "abs({0})"),
     ca.OP_EXP: ("exp{f}({0})", "_exp({0})"),
     ca.OP_LOG: ("log{f}({0})", "_log({0})"),
     ca.OP_POW: ("pow{f}({0}, {1})", "{0} ** {1}"),
     ca.OP_CONSTPOW: ("pow{f}({0}, {1})", "{0} ** {1}"),
+    # the simulation plant's pulse train and amplifier (derive.fmu.plant): C's relational
+    # operators give 0 or 1, as CasADi's; if_else_zero(c, x) is c ? x : 0
+    ca.OP_FMOD: ("fmod{f}({0}, {1})", "_fmod({0}, {1})"),
+    ca.OP_FMIN: ("fmin{f}({0}, {1})", "min({0}, {1})"),
+    ca.OP_FMAX: ("fmax{f}({0}, {1})", "max({0}, {1})"),
+    ca.OP_LT: ("{0} < {1}", "float({0} < {1})"),
+    ca.OP_LE: ("{0} <= {1}", "float({0} <= {1})"),
+    ca.OP_NOT: ("!{0}", "float(not {0})"),
+    ca.OP_AND: ("{0} && {1}", "float({0} and {1})"),
+    ca.OP_IF_ELSE_ZERO: ("{0} ? {1} : 0", "{1} if {0} else 0.0"),
 }
 
 

@@ -71,8 +71,13 @@ class FmuView:
     form: Form
     variables: tuple[Variable, ...]
     outputs: tuple[tuple[int, int], ...]   # (value reference, 1-based index in ModelVariables)
+    initial_unknowns: tuple[tuple[int, int], ...]   # none: the outputs start at 0
     units: tuple[Unit, ...]
     errors: tuple[tuple[str, str], ...]   # (error macro, what it means)
+    ok: str              # the API's success code
+    includes: tuple[str, ...]   # headers the glue includes
+    core: str            # the template of the FMU's core (instance, variables, step)
+    summary: str
     start_time: str
     stop_time: str
     step_size: str
@@ -98,7 +103,9 @@ def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: 
         real_type="Float32" if v.real == "float" else "Float64", runtime=v.runtime, model=model,
         model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}), of arm {v.arm}: "
                                                f"{v.description}"),
-        token=token, form=f, variables=found, outputs=outputs, units=units, errors=errors(v),
+        token=token, form=f, variables=found, outputs=outputs, initial_unknowns=(), units=units, errors=errors(v),
+        ok=f"{v.ARM}_OK", includes=(f"{v.arm}.h",), core="fmu/controller.c.jinja",
+        summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations})",
         start_time="0.0", stop_time=repr(float(duration)), step_size=repr(float(sample_time)), tool=tool,
         sources=sources)
 
@@ -151,3 +158,136 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
             f"voltage limit of motor {i + 1} (0 = none): u is clipped, the integrator held and the "
             "observer fed the clipped u", slot if v.runtime else literal, slot if v.runtime else "", finite=True)
     return tuple(out), tuple(units[k] for k in sorted(units))
+
+
+@dataclass(frozen=True)
+class PlantView:
+    """Everything the plant FMU's templates show (plain data); the shell fields
+    (fmi .. summary) are those of :class:`FmuView`."""
+
+    fmi: int
+    model: str
+    model_name: str
+    description: str
+    token: str
+    tool: str
+    units: tuple[Unit, ...]
+    variables: tuple[Variable, ...]
+    outputs: tuple[tuple[int, int], ...]
+    initial_unknowns: tuple[tuple[int, int], ...]
+    start_time: str
+    stop_time: str
+    step_size: str
+    sources: tuple[str, ...]
+    errors: tuple[tuple[str, str], ...]
+    ok: str
+    includes: tuple[str, ...]
+    core: str
+    summary: str
+    real_type: str
+    n: int
+    np: int
+    kernels: tuple
+    defaults: tuple[tuple[str, str], ...]   # (C lvalue, C literal) set at instantiation and reset
+    substeps: int
+
+
+def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
+                    vectors: tuple[tuple[str, str, str, tuple[float, ...]], ...],
+                    scalars: tuple[tuple[str, str, str, float], ...],
+                    fmi: int) -> tuple[tuple[Variable, ...], tuple[Unit, ...], tuple[tuple[str, str], ...]]:
+    """The plant FMU's variables: input u, outputs (the controller's inputs), and
+    tunable parameters: ``params`` (name, value, unit, description) of the true
+    arm (m->p[k]); ``vectors`` (name, unit, description, values) per joint and
+    ``scalars`` (name, unit, description, value), each read from the instance
+    field of the same name. Also the units and the defaults (C lvalue, literal)."""
+    from derive.codegen.printing import c_literal
+
+    rtype = "Real" if fmi == 2 else "Float64"
+    out: list[Variable] = []
+    units: dict[str, Unit] = {}
+    defaults: list[tuple[str, str]] = []
+
+    def add(name, causality, variability, initial, start, unit, doc, get, set_="", finite=False):
+        u = fmi_unit(unit)
+        if u is not None:
+            units[u.name] = u
+        out.append(Variable(len(out) + 1, name, rtype, causality, variability, initial, start,
+                            u.name if u else "", xml_text(doc), get, set_, finite))
+
+    for i in range(n):
+        add(f"u[{i + 1}]", "input", "continuous", "", "0.0", "V",
+            f"voltage of motor {i + 1}, held over the communication step (zero-order hold)", f"m->u[{i}]",
+            f"m->u[{i}]")
+    for field, unit, doc in INPUTS:
+        for i in range(n):
+            k = i if field in ("theta", "yd") else n + i
+            slot = {"theta": f"m->x[{k}]", "dtheta": f"m->x[{k}]", "yd": f"m->f[{k}]", "dyd": f"m->f[{k}]",
+                    "ddyd": f"m->ddyd[{i}]"}[field]
+            text = doc.format(i=i + 1).replace("measured", "true")
+            add(f"{field}[{i + 1}]", "output", "continuous", "calculated", "", unit, text, slot)
+    for k, (name, value, unit, doc) in enumerate(params):
+        slot = f"m->p[{k}]"
+        add(name, "parameter", "tunable", "exact", repr(value), unit, doc, slot, slot, finite=True)
+        defaults.append((slot, c_literal(value, "double")))
+    for name, unit, doc, values in vectors:
+        field = name.split("[")[0]
+        for i, value in enumerate(values):
+            slot = f"m->{field}[{i}]"
+            add(f"{name}[{i + 1}]", "parameter", "tunable", "exact", repr(value), unit, doc.format(i=i + 1), slot,
+                slot, finite=True)
+            defaults.append((slot, c_literal(value, "double")))
+    for name, unit, doc, value in scalars:
+        slot = f"m->{name}"
+        add(name, "parameter", "tunable", "exact", repr(value), unit, doc, slot, slot, finite=True)
+        defaults.append((slot, c_literal(value, "double")))
+    return tuple(out), tuple(units[k] for k in sorted(units)), tuple(defaults)
+
+
+def plant_view(arm, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
+    """The view of the plant FMU of ``arm``'s ``[simulation]`` section (derive.fmu.plant)."""
+    from derive.fmu.plant import amplitude_rad, plant_dynamics, plant_kernels
+
+    s = arm.simulation
+    dyn, values = plant_dynamics(arm, s)
+    known = {str(p.symbol): p for p in arm.parameters}
+    params = []
+    for sym, value in values:
+        p = known.get(str(sym))
+        what = f"{p.doc} (from {p.field})" if p is not None else str(sym)
+        params.append((str(sym), value, p.unit if p is not None else "",
+                       f"{what} of the simulated arm; the last link's point masses are "
+                       f"simulation.payload_scale = {s.payload_scale!r} times the arm file's"))
+    limits = tuple(float(m.input_limit) if m.input_limit else 0.0 for m in arm.motors)
+    vectors = (
+        ("coulomb", "N m", "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/0.01) (simulation.coulomb_friction)",
+         s.coulomb_friction),
+        ("viscous", "N m s/rad", "extra viscous friction of joint {i} (simulation.viscous_friction)",
+         s.viscous_friction),
+        ("dist", "V", "constant input disturbance d of motor {i}, B (u + d) (eq. 12; simulation.disturbance)",
+         s.disturbance),
+        ("u_max", "V", "the amplifier's voltage limit of motor {i}, 0 = none (motor.voltage_limit)", limits),
+        ("start", "s", "when the pulse train of link {i} starts (simulation.start)", s.start),
+        ("theta0", "rad", "angle of joint {i} at the start, at rest (simulation.initial_theta)", s.initial_theta),
+    )
+    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
+               ("amplitude", "rad", "pulse amplitude (simulation.amplitude_deg, section 5.2)", amplitude_rad(s)))
+    found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi)
+    if fmi == 3:
+        units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name))
+    listed = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
+    model = f"{arm.name}_plant"
+    return PlantView(
+        fmi=fmi, model=model, model_name=model,
+        description=xml_text(f"simulation plant of arm {arm.name} ([simulation] of its arm file): the true arm "
+                             "with friction, heavier tip, input disturbance and voltage limits (eq. 12), and the "
+                             "reference Gr(s) = 1/(s^2 + 1.8 s + 1) of a pulse train (section 5.2); RK4 with "
+                             f"{s.substeps} substeps per communication step"),
+        token=token, tool=tool, units=units, variables=found, outputs=listed, initial_unknowns=listed,
+        start_time="0.0", stop_time=repr(float(s.duration)), step_size=repr(float(sample_time)), sources=sources,
+        errors=(("PLANT_ENONFINITE", "a non-finite input u or plant state"),), ok="PLANT_OK", includes=(),
+        core="fmu/plant.c.jinja",
+        summary=f"simulation plant of arm {arm.name}: RK4, {s.substeps} substeps per step, u held",
+        real_type="Float64", n=arm.n, np=len(values), kernels=plant_kernels(dyn, tuple(v[0] for v in values),
+                                                                              s.substeps),
+        defaults=defaults, substeps=s.substeps)

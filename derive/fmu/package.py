@@ -152,38 +152,68 @@ def controller_sources(d: Derivation, o: FmuOptions, tool: str) -> tuple[str, di
     c_files = tuple(sorted([*(n for n in library if n.endswith(".c")), glue]))
     sample = o.sample_time if o.sample_time is not None else d.arm.simulation.sample_time
 
-    def rendered(token: str) -> tuple[dict[str, str], dict[str, str]]:
-        x = fmu_view(d, v, f, o.fmi, token=token, tool=tool, sample_time=sample,
-                     duration=d.arm.simulation.duration, sources=c_files)
-        sources = {**library, **fmi_headers(o.fmi), glue: render(f"fmu/fmi{o.fmi}.c.jinja", x=x)}
-        top = {"modelDescription.xml": render(f"fmu/modelDescription{o.fmi}.xml.jinja", x=x)}
-        if o.fmi == 3:
-            sources["buildDescription.xml"] = render("fmu/buildDescription.xml.jinja", x=x)
-        return sources, top
-
-    draft = rendered("")
-    sources, top = rendered(token_of({**draft[0], **draft[1]}))
-    return model, sources, top
+    glue_sources, top = _render(o.fmi, lambda token: fmu_view(d, v, f, o.fmi, token=token, tool=tool,
+                                                              sample_time=sample,
+                                                              duration=d.arm.simulation.duration,
+                                                              sources=c_files), glue, library)
+    return model, {**library, **fmi_headers(o.fmi), **glue_sources}, top
 
 
-def controller_fmu(d: Derivation, o: FmuOptions, cc: str = "cc", arm_bytes: bytes | None = None) -> tuple[str, bytes]:
-    """(file name, bytes) of the co-simulation FMU of ``d``'s controller as ``o`` says."""
-    tool = f"derive {metadata.version('derive')}"
-    model, sources, top = controller_sources(d, o, tool)
+def _package(d: Derivation, model: str, fmi: int, sources: dict[str, str], top: dict[str, str], cc: str,
+             arm_bytes: bytes | None, options: dict[str, object]) -> tuple[str, bytes]:
+    """Compile ``sources`` for this platform and zip everything into ``<model>.fmu``."""
     fmi3, fmi2, suffix = platform_names()
-    folder = fmi3 if o.fmi == 3 else fmi2
+    folder = fmi3 if fmi == 3 else fmi2
     if not folder:
         raise DeriveError(f"--fmi 2: FMI 2.0 names no binary folder for {platform.machine()}; use --fmi 3")
     binary = compile_library(cc, {k: t for k, t in sources.items() if not k.endswith(".xml")}, model + suffix)
     files: dict[str, bytes] = {name: text.encode() for name, text in top.items()}
     files.update({f"sources/{name}": text.encode() for name, text in sources.items()})
     files[f"binaries/{folder}/{model}{suffix}"] = binary
-    options = {"fmi": o.fmi, "form": o.form, "real": o.real, "params": o.params.value,
-               "sample_time": o.sample_time}
     if arm_bytes is not None:
         files[f"documentation/{Path(d.arm.source).name}"] = arm_bytes
     files["documentation/MANIFEST.json"] = manifest_text(d, files, arm_bytes, options, "derive fmu").encode()
     return f"{model}.fmu", zip_bytes(files)
+
+
+def _render(fmi: int, view_of, glue: str, other: dict[str, str]) -> tuple[dict[str, str], dict[str, str]]:
+    """Glue, modelDescription (and FMI 3 buildDescription) of ``view_of(token)``, the token
+    a hash of the ``other`` sources and of everything rendered with an empty token."""
+    def rendered(token: str) -> tuple[dict[str, str], dict[str, str]]:
+        x = view_of(token)
+        sources = {glue: render(f"fmu/fmi{fmi}.c.jinja", x=x)}
+        if fmi == 3:
+            sources["buildDescription.xml"] = render("fmu/buildDescription.xml.jinja", x=x)
+        return sources, {"modelDescription.xml": render(f"fmu/modelDescription{fmi}.xml.jinja", x=x)}
+
+    draft = rendered("")
+    return rendered(token_of({**other, **draft[0], **draft[1]}))
+
+
+def controller_fmu(d: Derivation, o: FmuOptions, cc: str = "cc", arm_bytes: bytes | None = None) -> tuple[str, bytes]:
+    """(file name, bytes) of the co-simulation FMU of ``d``'s controller as ``o`` says."""
+    tool = f"derive {metadata.version('derive')}"
+    model, sources, top = controller_sources(d, o, tool)
+    options = {"fmi": o.fmi, "form": o.form, "real": o.real, "params": o.params.value,
+               "sample_time": o.sample_time}
+    return _package(d, model, o.fmi, sources, top, cc, arm_bytes, options)
+
+
+def plant_fmu(d: Derivation, fmi: int, cc: str = "cc", arm_bytes: bytes | None = None,
+              sample_time: float | None = None) -> tuple[str, bytes]:
+    """(file name, bytes) of the co-simulation FMU of the arm's simulation plant
+    (derive.fmu.plant), FMI ``fmi``; its default step is the controller's sample time."""
+    from derive.fmu.describe import plant_view
+
+    tool = f"derive {metadata.version('derive')}"
+    model = f"{d.arm.name}_plant"
+    glue = f"{model}_fmu.c"
+    sample = sample_time if sample_time is not None else d.arm.simulation.sample_time
+    sources, top = _render(fmi, lambda token: plant_view(d.arm, fmi, token=token, tool=tool, sample_time=sample,
+                                                          sources=(glue,)), glue, {})
+    sources.update(fmi_headers(fmi))
+    return _package(d, model, fmi, sources, top, cc, arm_bytes,
+                    {"fmi": fmi, "plant": True, "sample_time": sample_time})
 
 
 def _umask() -> int:

@@ -425,3 +425,19 @@ def test_plant_fmu_refuses_a_nonfinite_voltage_and_keeps_its_state(paper, fmu_di
     assert plant.getFloat64(out) == before
     plant.terminate()
     plant.freeInstance()
+
+
+def test_unknown_platform_and_failing_compiler_are_one_clear_error_each(paper, monkeypatch, tmp_path):
+    import platform as host
+
+    with pytest.raises(DeriveError, match="compiling the FMU's sources with false failed"):
+        controller_fmu(paper, FmuOptions(form="mpc"), cc="false")
+    monkeypatch.setattr(host, "machine", lambda: "aarch64")
+    with pytest.raises(DeriveError, match="--fmi 2: FMI 2.0 names no binary folder for aarch64; use --fmi 3"):
+        controller_fmu(paper, FmuOptions(fmi=2, form="mpc"))
+    monkeypatch.setattr(host, "machine", lambda: "sparc64")
+    with pytest.raises(DeriveError, match=r"binary FMU: expected a platform of .*linux/x86_64.*, got linux/sparc64"):
+        controller_fmu(paper, FmuOptions(form="mpc"))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(EmitError, match="cannot create the folder"):
+        write_fmus(tmp_path / "file" / "sub", {"x.fmu": b""})

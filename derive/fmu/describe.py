@@ -1,6 +1,9 @@
-"""Views of a controller FMU: its variables, units and descriptions as plain data.
+"""Views of the FMUs: variables, units and descriptions as plain data.
 
-One :class:`FmuView` serves the C glue (``templates/fmu/*.c.jinja``: which C
+:class:`FmuView` (a controller form) and :class:`PlantView` (the simulation
+plant, derive.fmu.plant) share the fields the FMI shells and the XML templates
+read (``templates/fmu/fmi{2,3}.c.jinja``, ``modelDescription{2,3}.xml.jinja``);
+each names its core template (``x.core``). A view serves the C glue (which C
 lvalue each value reference reads or writes) and the ``modelDescription.xml``
 (name, causality, variability, unit, description with the paper's equation).
 Built from the arm's view (:func:`derive.codegen.views.arm_view`), the form

@@ -30,6 +30,12 @@ listed in ``locked`` are held too. Each of these steps is a sentence in
 chain is an error (not supported). Links above the base link do not move and
 are left out.
 
+Numbers are exact: a decimal of the file is the Rational of the shortest
+decimal that reads back as the parser's double (the file's own text for up
+to 15 significant digits); an angle not snapped to k pi/2 stays exact as
+cos/sin of that Rational, and a body parameter that is then irrational is
+rounded to 40 significant digits.
+
 Chain joint i's frame F_i is the URDF child link frame of moving joint i.
 The runtime parameters are the ten body parameters of each body in F_i (after
 merging): m, h = m c (hx, hy, hz) and the inertia about F_i's origin (Ixx, Ixy,

@@ -52,7 +52,7 @@ def _num(m: sp.MatrixBase, point: dict) -> sp.Matrix:
 # -- the default arm -------------------------------------------------------------------------------
 def test_every_project_obligation_is_proved_for_the_default_arm(results):
     project = [r for r in results.values() if r.obligation.kind is Kind.PROJECT]
-    assert len(project) == 10
+    assert len(project) == 12
     assert {r.obligation.id: r.outcome.status for r in project} == {r.obligation.id: Status.PROVED for r in project}
     assert exit_code(tuple(results.values())) == 0
 

@@ -29,9 +29,10 @@ if TYPE_CHECKING:
 def project_obligations() -> tuple[Obligation, ...]:
     """The obligations about an arm's derivation (kind ``project``), in reading order."""
     from derive.proofs import arm as proofs_arm
+    from derive.proofs import certificate as proofs_certificate
     from derive.proofs import project as proofs_project
 
-    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS)
+    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS, *proofs_certificate.OBLIGATIONS)
 
 
 def paper_obligations() -> tuple[Obligation, ...]:

@@ -70,6 +70,11 @@ def check_theorem2_arm(d: Derivation) -> Outcome:
     """Theorem 2 for this arm: (a6), J > 0, dV/dt of the derived observer, bound of (26)."""
     if d.n != 2:
         return not_applicable(f"theorem 2 is stated for two links; this arm has {d.n}")
+    if d.observer.full:
+        return not_applicable("theorem 2 is stated for W of eq. (25); this arm has a full W (see observer-certificate)")
+    if not d.W[1, 1] >= d.W[0, 0] > 0:
+        return not_applicable(f"(26) needs w2 >= w1 > 0; this arm has w1 = {d.W[0, 0]}, w2 = {d.W[1, 1]}: theorem 2 as "
+                              "printed does not apply (exact-region and observer-certificate decide)")
     ep = vec("ep", 2)
     E = Env(d, ep, d.L)
     F = E.F

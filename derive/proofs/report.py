@@ -75,6 +75,8 @@ def render_text(d: Derivation | None, results: Sequence[Result], seconds: float,
         out += [f"  {r.obligation.id}: {r.outcome.evidence}" for r in evidence]
     if d is not None and d.speed_bound is not None:
         out += ["", f"Theorem 2 for {d.arm.name}: (26) holds for |theta2'| < w1/X = {float(d.speed_bound):.6g} rad/s"]
+    out += [f"Observer certificate for {d.arm.name}: {r.outcome.detail.split('; W = ')[0]}"
+            for r in results if r.obligation.id == "observer-certificate" and d is not None]
     if not paper:
         out += ["", "The paper's printed equations do not depend on the arm: derive check --paper "
                     "decides them (the errata)."]

@@ -158,7 +158,7 @@ def massless_tip(d: dict) -> None:
 def many_problems() -> str:
     """Seven problems in seven places of one file."""
     text = DEFAULT_TEXT
-    for old, new in ((M1, "mass = -0.3\nmasse = 1"), (R1, "resistance = 0"), (W, "w = [2.0, 1.0]"),
+    for old, new in ((M1, "mass = -0.3\nmasse = 1"), (R1, "resistance = 0"), (W, "w = [2.0, 0.0]"),
                      (T1, "T1 = 5"), ('name = "glasgow_2link"', 'name = "int"'), (C, "C = [[1, 1], [1, 1]]")):
         text = text.replace(old, new, 1)
     return text
@@ -264,11 +264,24 @@ CASES = [
     C_("zero-T2", chain(both(put(0.0, "controller", "T2"))), ("controller.T2",), "> 0 (s), got 0.0"),
     C_("w1-zero", edit(W, "w = [0.0, 2.0]"), ("controller.w[1]",), "w1 > 0"),
     C_("w1-negative", edit(W, "w = [-1.0, 2.0]"), ("controller.w[1]",), "got -1.0"),
-    C_("w2-below-w1", edit(W, "w = [2.0, 1.0]"), ("controller.w[2]",), "w2 >= w1 = 2"),
-    C_("w3-below-w2", chain(put([1.0, 3.0, 2.0], "controller", "w"), n=3), ("controller.w[3]",), "w3 >= w2 = 3"),
-    C_("w-too-short", edit(W, "w = [1.0]"), ("controller.w",), "an array of 2 numbers"),
+    C_("w2-zero", edit(W, "w = [2.0, 0.0]"), ("controller.w[2]",), "w2 > 0 (observer gain [1/s]"),
+    C_("w3-negative", chain(put([1.0, 3.0, -2.0], "controller", "w"), n=3), ("controller.w[3]",), "got -2.0"),
+    C_("w-word", edit(W, 'w = "fast"'), ("controller.w",), "or 'auto'"),
+    C_("w-full-ragged", edit(W, "w = [[1.0, 0.0], [1.0]]"), ("controller.w",), "an n x n array (a full W)"),
+    C_("w-full-diagonal", edit(W, "w = [[1.0, 0.0], [1.0, -2.0]]"), ("controller.w[2][2]",),
+       "a diagonal entry > 0 [1/s]"),
+    C_("w-full-singular", edit(W, "w = [[1.0, 1.0], [1.0, 1.0]]"), ("controller.w",), "det W = 0"),
+    C_("w-full-entry", edit(W, 'w = [[1.0, "x"], [0.0, 1.0]]'), ("controller.w[1][2]",), "got string 'x'"),
+    C_("auto-without-speed", edit(W, 'w = "auto"'), ("controller.max_joint_speed",),
+       "the speed box [rad/s] W is synthesised for"),
+    C_("structure-without-auto", edit(W, W + '\nobserver_structure = "full"'), ("controller.observer_structure",),
+       "(w is not 'auto')"),
+    C_("structure-unknown", edit(W, 'w = "auto"\nmax_joint_speed = [1.0, 1.0]\nobserver_structure = "diag"'),
+       ("controller.observer_structure",), "'chen' or 'full'"),
+    C_("rate-negative", edit(W, W + "\nobserver_rate = -1.0"), ("controller.observer_rate",), ">= 0 (1/s)"),
+    C_("w-too-short", edit(W, "w = [1.0]"), ("controller.w",), "an array of 2 observer gains"),
     C_("w-too-long", edit(W, "w = [1.0, 2.0, 3.0]"), ("controller.w",), "(3 entries)"),
-    C_("w-scalar", edit(W, "w = 1.0"), ("controller.w",), "an array of 2 numbers, one per joint, got 1.0"),
+    C_("w-scalar", edit(W, "w = 1.0"), ("controller.w",), "an array of 2 observer gains w_j > 0 [1/s]"),
     C_("w-entry-string", edit(W, 'w = [1.0, "fast"]'), ("controller.w[2]",), "got string 'fast'"),
     C_("C-wrong-shape", edit(C, "C = [[1.0, 0.0]]"), ("controller.C",), "a 2 x 2 array"),
     C_("C-ragged", edit(C, "C = [[1.0, 0.0], [1.0]]"), ("controller.C",), "2 x 2"),

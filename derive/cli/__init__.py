@@ -22,6 +22,7 @@ COMMANDS = {
     "simulate": ("derive.cli.simulate", "simulate the arm in closed loop under the generated controllers"),
     "init": ("derive.cli.init", "write a starter arm file for a URDF (then: derive generate it)"),
     "fmu": ("derive.cli.fmu", "package a controller form as a co-simulation FMU (FMI 2.0 or 3.0)"),
+    "tune": ("derive.cli.tune", "choose the smallest certified observer gain W for a speed box (SDP)"),
 }
 
 

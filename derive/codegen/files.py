@@ -47,6 +47,18 @@ def python_files(d: Derivation, mode: ParamsMode) -> dict[str, str]:
     return {f"python/{d.arm.name}.py": render("python/arm.py.jinja", v=arm_view(d, "double", mode))}
 
 
+def observer_manifest(d: Derivation) -> dict:
+    """W [1/s] and its structure; for w = "auto" also the box, rate and certificate it was synthesised for."""
+    out = {"W": [[str(x) for x in d.W.row(i)] for i in range(d.n)], "structure": d.observer.structure,
+           "source": "synthesised" if d.synthesis is not None else "stated"}
+    syn = d.synthesis
+    if syn is not None:
+        out.update({"box_rad_per_s": list(syn.box), "rate_per_s": syn.rate, "norm": syn.norm,
+                    "headroom": syn.headroom, "certificate": {"verdict": syn.decision.verdict.value,
+                                                              "cells": syn.decision.cells}})
+    return out
+
+
 def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "double",
                    mode: ParamsMode = ParamsMode.BAKED) -> dict[str, str]:
     """Every generated file of one arm, with a manifest (no timestamps, no paths).
@@ -69,9 +81,10 @@ def manifest_text(d: Derivation, files: dict[str, str | bytes], arm_bytes: bytes
         "arm_file": d.arm.source.replace("\\", "/").rsplit("/", 1)[-1],
         "arm_sha256": hashlib.sha256(arm_bytes).hexdigest() if arm_bytes is not None else d.arm.source_sha256,
         "options": options,
+        "observer": observer_manifest(d),
         "versions": {"derive": metadata.version("derive"),
                      **{name: metadata.version(name) for name in PINNED}},
         "files": {path: hashlib.sha256(text.encode() if isinstance(text, str) else text).hexdigest()
                   for path, text in sorted(files.items())},
     }
-    return json.dumps(manifest, indent=2, sort_keys=True) + "\n"
+    return json.dumps(manifest, indent=2, sort_keys=True, allow_nan=False) + "\n"

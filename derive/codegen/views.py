@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
+from derive.model.spec import observer_parameters
 from derive.codegen.printing import c_literal, print_function
 
 def comment_text(text: str) -> str:
@@ -65,7 +66,7 @@ class ArmView:
     kernels: tuple[KernelView, ...]
     k1: str
     k2: str
-    w: tuple[str, ...]
+    observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
 
 
 def kernel_view(spec: KernelSpec, real: str, prefix: str) -> KernelView:
@@ -88,6 +89,11 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
     limits = [float(m.input_limit) if m.input_limit is not None else 0.0 for m in arm.motors]
     numbers = dict(values)
     docs = {str(p.symbol): p for p in arm.parameters}
+    syn = d.synthesis
+    if syn is not None:   # w = "auto": the synthesised gain (derive.control.synthesis)
+        chen = syn.structure == "chen"
+        docs.update({str(p.symbol): p for p in observer_parameters(
+            [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'")})
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(
@@ -99,7 +105,21 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(repr(v) for v in limits),
         kernels=tuple(kernel_view(k, real, arm.name) for k in kernel_specs(d, mode)),
         k1=repr(float(d.K1[0, 0])), k2=repr(float(d.K2[0, 0])),
-        w=tuple(repr(numbers[f"w{i + 1}"]) for i in range(d.n)))
+        observer_notes=tuple(comment_text(x) for x in observer_notes(d)))
+
+
+def observer_notes(d: Derivation) -> tuple[str, ...]:
+    """Lines for the generated headers: W [1/s], its structure and, for w = "auto", the box,
+    rate and certificate it was synthesised for (derive.control.synthesis)."""
+    rows = "[" + ", ".join("[" + ", ".join(f"{float(x):.6g}" for x in d.W.row(i)) + "]" for i in range(d.n)) + "]"
+    lines = [f"Observer gain W = {rows} 1/s ({d.observer.structure} structure, eq. 23-25)."]
+    syn = d.synthesis
+    if syn is not None:
+        box = ", ".join(f"{x:g}" for x in syn.box)
+        lines.append(f"W synthesised (w = 'auto'): smallest ||W||_2 = {syn.norm:.6g} with W + W^T - J' - 2 beta J > 0 "
+                     f"for |theta'| <= [{box}] rad/s, beta = {syn.rate:g} 1/s; certificate {syn.decision.verdict.value} "
+                     f"({syn.decision.cells} cells).")
+    return tuple(lines)
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from derive.dynamics.planar import Dynamics, derive_dynamics, lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
+from derive.control.synthesis import Synthesis, synthesise_for
 from derive.model.spec import Arm
 
 
@@ -61,6 +62,7 @@ class Derivation:
     lumped: dict | None
     speed_bound: sp.Expr | None
     warnings: tuple[str, ...]
+    synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
 
     @property
     def n(self) -> int:
@@ -96,7 +98,14 @@ def derive(arm: Arm) -> Derivation:
     dyn = derive_dynamics(arm)
     ctl = arm.controller
     mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
-    obs = derive_observer(dyn, ctl.w)
+    synthesis = None
+    if ctl.w_auto:
+        synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.params.values)), dyn.sym.theta)
+        chen = synthesis.structure == "chen"
+        obs = derive_observer(dyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
+                              W_values=None if chen else synthesis.W)
+    else:
+        obs = derive_observer(dyn, w_values=ctl.w, W_values=ctl.W)
     npid = derive_npid(dyn, mpc, obs)
     values = dyn.params.values + mpc.values + obs.values
     rep = dict(values)
@@ -107,7 +116,8 @@ def derive(arm: Arm) -> Derivation:
     lumped = bound = None
     if arm.n == 2:
         lumped = {k: v.xreplace(rep) for k, v in lumped_2link(dyn).items()}
-        bound = speed_bound(lumped["X"], rep[obs.w[0]]) if lumped["X"] != 0 else sp.oo
+        if not obs.full:
+            bound = speed_bound(lumped["X"], rep[obs.w[0]]) if lumped["X"] != 0 else sp.oo
     warnings = []
     speeds = ctl.max_joint_speed
     if bound is not None and speeds is not None and sp.Rational(speeds[1].numerator, speeds[1].denominator) >= bound:
@@ -121,4 +131,4 @@ def derive(arm: Arm) -> Derivation:
         C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
-        speed_bound=bound, warnings=tuple(warnings))
+        speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis)

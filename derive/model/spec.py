@@ -63,15 +63,29 @@ _MISSING = object()
 _ZERO = Fraction(0)
 
 
+OBSERVER_STRUCTURES = ("chen", "full")
+
+
 @dataclass(frozen=True)
 class Controller:
-    """Settings of the predictive controller (eq. 14-19) and observer (eq. 23-25)."""
+    """Settings of the predictive controller (eq. 14-19) and observer (eq. 23-25).
+
+    The observer gain W [1/s] is given one of three ways: ``w`` (n gains, W[i][j] = w_j
+    for j <= i, eq. 25 generalised), ``W`` (a full n x n matrix) or ``w_auto`` (chosen by
+    derive.control.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
+    with the structure ``observer_structure``: "chen" or "full"). ``observer_rate``
+    [1/s]: the exponential rate the observer certificate must give (0: any).
+    """
 
     T1: Fraction
     T2: Fraction
-    w: tuple[Fraction, ...]
+    w: tuple[Fraction, ...] | None
     C: tuple[tuple[Fraction, ...], ...]
     max_joint_speed: tuple[Fraction, ...] | None
+    W: tuple[tuple[Fraction, ...], ...] | None = None
+    w_auto: bool = False
+    observer_rate: Fraction = Fraction(0)
+    observer_structure: str = "chen"
 
 
 @dataclass(frozen=True)
@@ -138,12 +152,29 @@ def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Symbol(f"w{i + 1}", positive=True) for i in range(n))
 
 
+def full_w_symbols(n: int) -> tuple[sp.Symbol, ...]:
+    """Gain symbols of a full W, row-major: W1_1, W1_2, ..., Wn_n [1/s]."""
+    return tuple(sp.Symbol(f"W{i + 1}_{j + 1}", real=True) for i in range(n) for j in range(n))
+
+
+def observer_parameters(w=None, W=None, field: str = "controller.w") -> tuple[Parameter, ...]:
+    """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W)."""
+    if W is not None:
+        n = len(W)
+        return tuple(Parameter(s, W[k // n][k % n], "1/s", f"{field}[{k // n + 1}][{k % n + 1}]",
+                               f"observer gain W[{k // n + 1}][{k % n + 1}] (full W, eq. 23-25)")
+                     for k, s in enumerate(full_w_symbols(n)))
+    return tuple(Parameter(s, v, "1/s", f"{field}[{i}]", f"observer gain w{i} (eq. 25)")
+                 for i, (s, v) in enumerate(zip(w_symbols(len(w)), w), 1))
+
+
 def controller_parameters(c: Controller) -> tuple[Parameter, ...]:
-    """T1, T2 (eq. 14) and w1..wn (eq. 25) as parameters; k1, k2 are expressions of T1, T2."""
+    """T1, T2 (eq. 14) and the observer gain (eq. 25; none here for w = "auto": the
+    pipeline adds the synthesised one) as parameters; k1, k2 are expressions of T1, T2."""
     out = [Parameter(T1_SYMBOL, c.T1, "s", "controller.T1", "minimum prediction time T1 (eq. 14)"),
            Parameter(T2_SYMBOL, c.T2, "s", "controller.T2", "maximum prediction time T2 (eq. 14)")]
-    out += [Parameter(w, v, "1/s", f"controller.w[{i}]", f"observer gain w{i} (eq. 25)")
-            for i, (w, v) in enumerate(zip(w_symbols(len(c.w)), c.w), 1)]
+    if not c.w_auto:
+        out += observer_parameters(c.w, c.W)
     return tuple(out)
 
 
@@ -250,9 +281,13 @@ ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)
             "urdf": None, "base_link": None, "tip_link": None, "locked": None}
 URDF_ONLY = ("base_link", "tip_link", "locked")
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
-                   "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None}
+                   "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None,
+                   "observer_rate": None, "observer_structure": None}
 KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
               "or urdf = \"robot.urdf\" under [arm]")
+W_EXPECTED = ("an array of n observer gains w_j > 0 [1/s] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
+              "(a full W), or 'auto' (chosen by an SDP for max_joint_speed)")
+RATE = Num("1/s", _ZERO)
 
 
 def _kind(r: Reader, top: dict, arm: Any) -> str | None:
@@ -401,19 +436,63 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
     if T1 is not None and T2 is not None and T1 >= T2:
         shown = show(d["T2"]) + (f" (= {fmt(T2)})" if isinstance(d["T2"], str) else "")
         r.add("controller.T2", f"a number > T1 = {fmt(T1)} (s; the prediction horizon [T1, T2] of eq. 14)", shown)
-    w = _vector(r, d, "w", n, ANY["1/s"])
-    if w and None not in w:
-        if w[0] <= 0:
-            r.add("controller.w[1]", "w1 > 0 (observer gain, eq. 26)", show(d["w"][0]))
-        for i in range(1, len(w)):
-            if w[i] < w[i - 1]:
-                r.add(f"controller.w[{i + 1}]", f"w{i + 1} >= w{i} = {fmt(w[i - 1])} "
-                      "(eq. 26: nondecreasing observer gains)", show(d["w"][i]))
+    w, W, auto = _observer_gain(r, d, n)
     speeds = _vector(r, d, "max_joint_speed", n, POSITIVE["rad/s"])
+    rate = r.number(d, "observer_rate", f, RATE, _ZERO)
+    structure = d.get("observer_structure", "chen")
+    if structure not in OBSERVER_STRUCTURES or ("observer_structure" in d and not auto):
+        r.add("controller.observer_structure", "'chen' or 'full', with w = 'auto' (the structure of the "
+              "synthesised W)", show(structure) + ("" if auto else " (w is not 'auto')"))
+    if auto and "max_joint_speed" not in d:
+        r.add("controller.max_joint_speed", "the speed box [rad/s] W is synthesised for (w = 'auto')",
+              "nothing (the key is missing)")
     C = _matrix(r, d.get("C"), n)
-    if None in (T1, T2) or not w or None in w or (speeds and None in speeds):
+    if None in (T1, T2, rate) or not (w or W or auto) or (speeds and None in speeds):
         return None
-    return Controller(T1, T2, tuple(w), C, tuple(speeds) if speeds else None)
+    return Controller(T1, T2, w, C, tuple(speeds) if speeds else None, W=W, w_auto=auto, observer_rate=rate,
+                      observer_structure=structure if structure in OBSERVER_STRUCTURES else "chen")
+
+
+def _observer_gain(r: Reader, d: dict, n: int | None) -> tuple[tuple | None, tuple | None, bool]:
+    """(w, W, auto) from controller.w: n gains w_j > 0, an n x n matrix, or 'auto'.
+
+    Whether the observer converges is the certificate's to decide (derive check); what is
+    checked here is what every certificate needs: a positive diagonal of W (the diagonal
+    of W + W^T) and an invertible W (V of (a7) uses W^-1)."""
+    if "w" not in d:
+        return None, None, False
+    value = d["w"]
+    if isinstance(value, str) and value == "auto":
+        return None, None, True
+    if isinstance(value, list) and value and all(isinstance(row, list) for row in value):
+        m = n if n is not None else len(value)
+        if len(value) != m or not all(len(row) == m for row in value):
+            r.bad("controller.w", W_EXPECTED, value)
+            return None, None, False
+        rows = [[r.value(x, f"controller.w[{i}][{j}]", ANY["1/s"]) for j, x in enumerate(row, 1)]
+                for i, row in enumerate(value, 1)]
+        if any(x is None for row in rows for x in row):
+            return None, None, False
+        bad = [i for i in range(m) if rows[i][i] <= 0]
+        for i in bad:
+            r.add(f"controller.w[{i + 1}][{i + 1}]", "a diagonal entry > 0 [1/s] (W + W^T must be positive "
+                  "definite)", show(value[i][i]))
+        if not bad and _det(rows) == 0:
+            r.add("controller.w", "an invertible W (V of eq. a7 uses W^-1)", f"{inline(value)} (det W = 0)")
+            return None, None, False
+        return (None, tuple(tuple(row) for row in rows), False) if not bad else (None, None, False)
+    if not isinstance(value, list) or not value or (n is not None and len(value) != n) \
+            or any(isinstance(x, list) for x in value):
+        r.bad("controller.w", W_EXPECTED.replace("n observer", f"{n} observer") if n else W_EXPECTED, value)
+        return None, None, False
+    w = [r.value(x, f"controller.w[{i}]", ANY["1/s"]) for i, x in enumerate(value, 1)]
+    if None in w:
+        return None, None, False
+    bad = [i for i, x in enumerate(w) if x <= 0]
+    for i in bad:
+        r.add(f"controller.w[{i + 1}]", f"w{i + 1} > 0 (observer gain [1/s]: the diagonal of W + W^T, eq. 25)",
+              show(value[i]))
+    return (None if bad else tuple(w)), None, False
 
 
 def _vector(r: Reader, d: dict, key: str, n: int | None, num: Num) -> list | None:

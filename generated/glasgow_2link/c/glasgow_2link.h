@@ -15,6 +15,7 @@
  *   The two forms are equal in continuous time when init uses the derived
  *   initial estimate dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)); discretised,
  *   they differ by O(dt).
+ * Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
  * Voltage limits (0 = none): u is clipped to [-u_max, u_max]; the observer is
  * fed the clipped u and the PID integrator of a clipped joint is held.
  * A step returns GLASGOW_2LINK_ENONFINITE for a non-finite input, state or result

@@ -8,6 +8,7 @@ mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
+Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 and leaves its state and u untouched.
 

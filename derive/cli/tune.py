@@ -1,0 +1,85 @@
+"""``derive tune [ARM] [--speed V1,V2,...] [--rate BETA] [--structure chen|full] [--json FILE]``:
+the smallest observer gain W certified on a speed box at a rate (derive.control.synthesis).
+
+Prints W, ||W||_2, the certificate's verdict and the ``w = ...`` line to put in the arm file's
+[controller]. The box is ``--speed`` or the arm's max_joint_speed; one of them is needed.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from derive.errors import DeriveError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI: derive tune [ARM] [--speed ...] [--rate BETA] [--structure chen|full] [--json FILE]."""
+    from derive.cli import add_arm_argument
+
+    add_arm_argument(parser)
+    parser.add_argument("--speed", default=None, metavar="V1,V2,...",
+                        help="the speed box |theta'_k| <= V_k [rad/s] (default: the arm's max_joint_speed)")
+    parser.add_argument("--rate", type=float, default=None,
+                        help="exponential rate beta [1/s] the certificate must give (default: the arm's observer_rate or 0)")
+    parser.add_argument("--structure", choices=("chen", "full"), default=None,
+                        help="W[i][j] = w_j for j <= i (eq. 25, default) or a full matrix")
+    parser.add_argument("--json", type=Path, default=None, help="also write the result as JSON to this file")
+
+
+def _speeds(text: str, n: int) -> tuple[float, ...]:
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != n or not all(math.isfinite(v) and v > 0 for v in values):
+        raise DeriveError(f"--speed: expected {n} comma-separated finite numbers > 0 (rad/s), got {text!r}")
+    return tuple(values)
+
+
+def run(args: argparse.Namespace) -> int:
+    from derive.control.certificate import inertia_model
+    from derive.control.pipeline import derive
+    from derive.control.synthesis import synthesise
+    from derive.model.spec import load_arm
+    from derive.proofs.report import write_text
+
+    arm = load_arm(args.arm)
+    ctl = arm.controller
+    if args.speed is not None:
+        box = _speeds(args.speed, arm.n)
+    elif ctl.max_joint_speed is not None:
+        box = tuple(float(x) for x in ctl.max_joint_speed)
+    else:
+        raise DeriveError(f"derive tune {arm.name}: expected a speed box, from --speed or the arm's "
+                          "controller.max_joint_speed; got neither")
+    rate = float(ctl.observer_rate) if args.rate is None else args.rate
+    if not (math.isfinite(rate) and rate >= 0):
+        raise DeriveError(f"--rate: expected a finite number >= 0 (1/s), got {args.rate}")
+    structure = args.structure or ctl.observer_structure
+    if args.json is not None and not args.json.parent.is_dir():
+        raise DeriveError(f"--json {args.json}: expected a file in an existing folder, got a missing folder "
+                          f"{args.json.parent}")
+    d = derive(arm)
+    syn = synthesise(inertia_model(d), box, rate, structure)
+    rows = [[float(x) for x in row] for row in syn.W]
+    if structure == "chen":
+        line = "w = [" + ", ".join(f"{rows[j][j]:g}" for j in range(arm.n)) + "]"
+    else:
+        line = "w = [" + ", ".join("[" + ", ".join(f"{x:g}" for x in row) + "]" for row in rows) + "]"
+    out = [f"derive tune {arm.name}: box |theta'| <= [{', '.join(f'{v:g}' for v in box)}] rad/s, rate {rate:g} 1/s, "
+           f"{structure} structure",
+           f"W = {rows} 1/s, ||W||_2 = {syn.norm:.6g}",
+           f"certificate: {syn.decision.verdict.value} ({syn.decision.cells} cells; program headroom {syn.headroom:g}, "
+           f"{syn.rounds} solves, {syn.samples} constraints, {syn.seconds:.1f} s)",
+           f"[controller] {line}"]
+    sys.stdout.write("\n".join(out) + "\n")
+    if args.json is not None:
+        doc = {"arm": arm.name, "box_rad_per_s": list(box), "rate_per_s": rate, "structure": structure,
+               "W": rows, "norm": syn.norm, "certificate": syn.decision.verdict.value, "cells": syn.decision.cells,
+               "headroom": syn.headroom, "seconds": round(syn.seconds, 3)}
+        write_text(args.json, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    return 0 if syn.decision.verdict.value == "proved" else 1

@@ -275,11 +275,12 @@ def test_cli_check_arm_runs_only_its_own_obligations(tmp_path):
     doc = json.loads(out_json.read_text(encoding="utf-8"))
     assert (doc["arm"], doc["n"], doc["exit_code"]) == ("my3", 3, 0)
     obs = {o["id"]: o for o in doc["obligations"]}
-    assert {o["kind"] for o in obs.values()} == {"project"} and len(obs) == 10
-    assert obs["theorem2-arm"]["status"] == "n/a"
+    assert {o["kind"] for o in obs.values()} == {"project"} and len(obs) == 12
+    assert obs["theorem2-arm"]["status"] == "n/a" and obs["exact-region"]["status"] == "n/a"
+    assert obs["observer-certificate"]["status"] == "proved"
     assert "the printed (31) is not this arm's dhat(0) (K2 = 25/2 I;" in obs["dhat0"]["detail"]
-    assert proc.stdout.startswith("derive check my3 (3 joints): 10 obligations: 9 proved, 0 refuted, "
-                                  "0 unproven, 1 n/a")
+    assert proc.stdout.startswith("derive check my3 (3 joints): 12 obligations: 10 proved, 0 refuted, "
+                                  "0 unproven, 2 n/a")
     assert "derive check --paper decides them" in proc.stdout
 
 

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from derive.control.pipeline import derive
     from derive.control.synthesis import synthesise
     from derive.model.spec import load_arm
-    from derive.proofs.report import write_text
+    from derive.codegen.emit import write_file as write_text
 
     arm = load_arm(args.arm)
     ctl = arm.controller

@@ -105,16 +105,17 @@ def _inputs(n: int, steps: int, seed: int = 14) -> np.ndarray:
 
 
 def _reference(m, form: str, X: np.ndarray, dt: float, params=None):
-    """u (and dhat for forms that estimate it) of the Python module along X."""
+    """u, dhat (None for forms without an estimate) and the clipped-joints masks
+    (None where the API reports none) of the Python module along X."""
     n = m.N
     p = params or m.Params()
     s = {"npid": m.NpidState, "dobc": m.DobcState}.get(form)
     s = s() if s else None
-    us, dhats = [], []
+    us, dhats, masks = [], [], []
     for k, x in enumerate(X):
         inp = m.Input(*(list(x[i * n:(i + 1) * n]) for i in range(5)))
         if s is None:
-            code, u = m.mpc_step(p, inp)
+            code, u, *clipped = m.mpc_step(p, inp)
         else:
             if k == 0:
                 assert getattr(m, f"{form}_init")(p, s, inp) == 0
@@ -122,10 +123,11 @@ def _reference(m, form: str, X: np.ndarray, dt: float, params=None):
                 code, dhat = getattr(m, f"{form}_estimate")(p, s, inp)
                 assert code == 0
                 dhats.append(dhat)
-            code, u = getattr(m, f"{form}_step")(p, s, inp, dt)
+            code, u, *clipped = getattr(m, f"{form}_step")(p, s, inp, dt)
         assert code == 0
         us.append(u)
-    return np.array(us), (np.array(dhats) if dhats else None)
+        masks.append(clipped[0] if clipped else None)
+    return np.array(us), (np.array(dhats) if dhats else None), masks
 
 
 def _signal(md, X: np.ndarray, dt: float) -> np.ndarray:
@@ -166,9 +168,16 @@ def test_fmu_simulated_by_fmpy_equals_the_generated_python_module(paper, fmu_dir
     p = module.Params()
     p.Kt1, p.u_max = start.get("Kt1", p.Kt1), [p.u_max[0], start.get("u_max[2]", p.u_max[1])]
     outputs = ["u[1]", "u[2]"] + (["dhat[1]", "dhat[2]"] if FORMS[form].estimate else [])
+    flags = [f"clipped[{i}]" for i in (1, 2) if f"clipped[{i}]" in {v.name for v in md.modelVariables}]
     res = simulate_fmu(str(path), start_time=0.0, stop_time=STEPS * DT, output_interval=DT,
-                       input=_signal(md, X, DT), output=outputs, start_values=start, fmi_type="CoSimulation")
-    u_ref, dhat_ref = _reference(module, form, X, DT, p)
+                       input=_signal(md, X, DT), output=outputs + flags, start_values=start,
+                       fmi_type="CoSimulation")
+    u_ref, dhat_ref, masks = _reference(module, form, X, DT, p)
+    if masks[0] is not None:  # the API reports the clipped joints (issue 15 item 4): so does the FMU
+        clipped = np.column_stack([res["clipped[1]"], res["clipped[2]"]])[1:]
+        assert [int(a) + 2 * int(b) for a, b in clipped] == masks  # the API's mask, joint by joint
+        if params == "runtime":
+            assert clipped[:, 1].any() and not clipped[:, 0].any()  # u_max[2] = 30 V set through FMI
     # row k + 1 holds what the step at t_k computed (held over [t_k, t_k+1]); row 0 the start value 0
     got = np.column_stack([res[name] for name in outputs])
     assert np.all(got[0] == 0)
@@ -213,7 +222,7 @@ def test_nonfinite_input_gives_an_error_status_and_leaves_state_and_outputs_unch
         fmu.enterInitializationMode()
     fmu.exitInitializationMode()
     X = _inputs(paper.n, 3, seed=7)
-    u_ref, dhat_ref = _reference(module, "dobc", X, DT)
+    u_ref, dhat_ref, _ = _reference(module, "dobc", X, DT)
     set_real(inputs, list(X[0]))
     fmu.doStep(0.0, DT)
     before = get_real(outputs)

@@ -75,6 +75,7 @@ class FmuView:
     variables: tuple[Variable, ...]
     outputs: tuple[tuple[int, int], ...]   # (value reference, 1-based index in ModelVariables)
     initial_unknowns: tuple[tuple[int, int], ...]   # none: the outputs start at 0
+    mask: str            # C type of the API's clipped-joints mask, "" when it has none
     units: tuple[Unit, ...]
     errors: tuple[tuple[str, str], ...]   # (error macro, what it means)
     ok: str              # the API's success code
@@ -86,6 +87,13 @@ class FmuView:
     step_size: str
     tool: str
     sources: tuple[str, ...]    # C files of sources/, compiled together
+
+
+def mask_type(v: ArmView) -> str:
+    """The C type of the API's clipped-joints mask (``<arm>_mask``, issue 15 item 4),
+    "" while the generated API has none: the glue passes it to every step and the
+    FMU shows it as Boolean outputs ``clipped[i]`` only when it exists."""
+    return f"{v.arm}_mask" if getattr(v, "mask", "") else ""
 
 
 def errors(v: ArmView) -> tuple[tuple[str, str], ...]:
@@ -106,7 +114,8 @@ def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: 
         real_type="Float32" if v.real == "float" else "Float64", runtime=v.runtime, model=model,
         model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}), of arm {v.arm}: "
                                                f"{v.description}"),
-        token=token, form=f, variables=found, outputs=outputs, initial_unknowns=(), units=units, errors=errors(v),
+        token=token, form=f, variables=found, outputs=outputs, initial_unknowns=(), mask=mask_type(v),
+        units=units, errors=errors(v),
         ok=f"{v.ARM}_OK", includes=(f"{v.arm}.h",), core="fmu/controller.c.jinja",
         summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations})",
         start_time="0.0", stop_time=repr(float(duration)), step_size=repr(float(sample_time)), tool=tool,
@@ -126,11 +135,11 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
     out: list[Variable] = []
     units: dict[str, Unit] = {}
 
-    def add(name, causality, variability, initial, start, unit, doc, get, set_="", finite=False):
+    def add(name, causality, variability, initial, start, unit, doc, get, set_="", finite=False, kind=None):
         u = fmi_unit(unit)
         if u is not None:
             units[u.name] = u
-        out.append(Variable(len(out) + 1, name, rtype, causality, variability, initial, start,
+        out.append(Variable(len(out) + 1, name, kind or rtype, causality, variability, initial, start,
                             u.name if u else "", xml_text(doc), get, set_, finite))
 
     for field, unit, doc in INPUTS:
@@ -147,6 +156,12 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
             add(f"dhat[{i + 1}]", "output", "discrete", "exact", "0.0", "V",
                 f"disturbance estimate of joint {i + 1}, dhat = B^-1 (z + W theta') (eq. 22), "
                 "the one the last step used; 0 before the first step", f"m->dhat[{i}]")
+    if mask_type(v):
+        for i in range(d.n):
+            add(f"clipped[{i + 1}]", "output", "discrete", "exact", "false", "",
+                f"true when the last step clipped the voltage of motor {i + 1} to u_max[{i + 1}] (the API's "
+                "mask; the integrator held, the observer fed the clipped u); false before the first step",
+                f"((m->clipped >> {i}) & 1u)", kind="Boolean")
     values = {str(s): float(x) for s, x in d.values}
     causality, variability = ("parameter", "tunable") if v.runtime else ("local", "constant")
     for name, literal, doc in v.params:

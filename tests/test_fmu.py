@@ -450,3 +450,12 @@ def test_unknown_platform_and_failing_compiler_are_one_clear_error_each(paper, m
     (tmp_path / "file").write_text("")
     with pytest.raises(EmitError, match="cannot create the folder"):
         write_fmus(tmp_path / "file" / "sub", {"x.fmu": b""})
+
+
+def test_default_step_is_the_arm_sample_time_unless_overridden(paper):
+    from derive.fmu.package import controller_sources
+
+    for override, want in ((None, paper.arm.simulation.sample_time), (0.001, 0.001)):
+        _, _, top = controller_sources(paper, FmuOptions(form="mpc", sample_time=override), "derive test")
+        step = re.search(r'stepSize="([^"]+)"', top["modelDescription.xml"]).group(1)
+        assert float(step) == want

@@ -79,8 +79,8 @@ def check_options(fmi: object, form: object, real: object, params: object,
     modes = [m.value for m in ParamsMode]
     if str(getattr(params, "value", params)) not in modes:
         problems.append(f"--params: expected one of {', '.join(modes)}, got {params!r}")
-    if sample_time is not None and not (isinstance(sample_time, (int, float)) and math.isfinite(sample_time)
-                                        and sample_time > 0):
+    if sample_time is not None and not (isinstance(sample_time, (int, float)) and not isinstance(sample_time, bool)
+                                        and math.isfinite(sample_time) and sample_time > 0):
         problems.append(f"--sample-time: expected a finite number of seconds > 0, got {sample_time!r}")
     if problems:
         raise DeriveError("; ".join(problems))

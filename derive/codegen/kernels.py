@@ -18,6 +18,7 @@ from enum import Enum
 
 import sympy as sp
 
+from derive.dynamics.dag import Memo, free_symbols
 from derive.errors import CoverageError
 from derive.control.pipeline import Derivation
 
@@ -75,12 +76,9 @@ def check_coverage(spec: KernelSpec) -> None:
                                     f"{owner[s]} and {port.name}")
             owner[s] = port.name
     unknowns = {y for solve in spec.solves for y in solve.unknowns}
-    used: set = set()
-    for solve in spec.solves:
-        used |= solve.A.free_symbols | solve.b.free_symbols
-    for port in spec.outputs:
-        for expr in port.items:
-            used |= sp.sympify(expr).free_symbols
+    memo = Memo()  # free symbols of each shared subexpression, computed once
+    used = free_symbols([v for solve in spec.solves for v in (*solve.A, *solve.b)], memo)
+    used |= free_symbols([v for port in spec.outputs for v in port.items], memo)
     missing = sorted(map(str, used - set(owner) - unknowns))
     if missing:
         raise CoverageError(f"kernel {spec.name}: outputs use symbols no input port provides: "

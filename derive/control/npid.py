@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from derive.dynamics.dag import jacobian, matrix_xreplace
 from derive.dynamics.planar import Dynamics
 from derive.errors import DerivationError
 from derive.control.mpc import Mpc
@@ -77,8 +78,8 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
         raise DerivationError("the derived dhat(0) leaves a constant in eq. (30)")
     dhat_pid = rate.xreplace(antiderivative)  # eq. (32): dhat(t) with its constant removed
     u_npid = mpc.u_star - dhat_pid  # kept factored: its Jacobians keep the structure of J, G
-    P, D, I = (u_npid.jacobian(v) for v in (e, de, int_e))
+    P, D, I = (jacobian(u_npid, v) for v in (e, de, int_e))
     zero = {**{a: 0 for a in e}, **{a: 0 for a in de}, **{a: 0 for a in int_e}}
-    N = u_npid.xreplace(zero)
+    N = matrix_xreplace(u_npid, zero)
     return Npid(dhat_rate=rate, dhat_t=dhat_t, dhat0=dhat0, u_dobc=mpc.u_star - obs.dhat,
                 u_npid=u_npid, P=P, D=D, I=I, N=N)

@@ -7,9 +7,11 @@ values put in, which is what users and the tests read.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import sympy as sp
 
+from derive.dynamics.dag import Substitution
 from derive.dynamics.planar import Dynamics, derive_dynamics, lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.npid import Npid, derive_npid
@@ -73,9 +75,20 @@ class Derivation:
         """k1, k2 in the symbols T1, T2 (eq. 16-18)."""
         return gains()
 
+    @cached_property
+    def _put_values(self) -> Substitution:
+        return Substitution(dict(self.values))
+
+    @cached_property
+    def _put_measurements(self) -> Substitution:
+        s = self.dynamics.sym
+        e, de = self.tracking_error
+        return Substitution({**dict(zip(s.e, e)), **dict(zip(s.de, de)),
+                             **dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
+
     def numeric(self, expr):
         """``expr`` (in parameter and gain symbols) with the arm's values put in."""
-        return expr.xreplace(dict(self.values))
+        return self._put_values(expr)
 
     @property
     def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
@@ -87,10 +100,7 @@ class Derivation:
     def measured(self, expr):
         """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
         at the first sample e(0) and e'(0) are the current e and e'."""
-        s = self.dynamics.sym
-        e, de = self.tracking_error
-        return expr.xreplace({**dict(zip(s.e, e)), **dict(zip(s.de, de)),
-                              **dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
+        return self._put_measurements(expr)
 
 
 def derive(arm: Arm) -> Derivation:
@@ -109,9 +119,7 @@ def derive(arm: Arm) -> Derivation:
     npid = derive_npid(dyn, mpc, obs)
     values = dyn.params.values + mpc.values + obs.values
     rep = dict(values)
-
-    def num(m):
-        return m.xreplace(rep)
+    num = Substitution(rep)  # one memo for every matrix: they share J's and G's subexpressions
 
     lumped = bound = None
     if arm.n == 2:

@@ -1,0 +1,148 @@
+"""Expression-DAG versions of SymPy's tree walks: substitution, free symbols,
+differentiation.
+
+The recursive dynamics share their subexpressions: for an 8-link planar chain
+the bias vector G has 299 distinct subexpressions but 1.6 million tree nodes.
+SymPy's ``xreplace``, ``free_symbols`` and ``diff`` walk the tree, so every
+stage after the dynamics (values put in, e written in measurements, the PID
+Jacobians, the kernels' coverage check) grew exponentially with the chain.
+These functions visit each distinct subexpression once (a memo keyed by the
+subexpression, shared across the entries of a matrix) and build exactly what
+SymPy's own functions build: the same constructors on the same arguments, in
+the same order. Iterative, so deep chains do not hit Python's recursion limit.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from functools import reduce
+
+import sympy as sp
+
+
+class Memo(dict):
+    """Results per subexpression object, keyed by ``id`` (the object is kept
+    alive beside its result). Looking a subexpression up by equality would
+    compare two equal but distinct trees node by node, a tree walk again.
+    ``canon`` keeps one object per equal result (hash-consing): results built
+    from canonical arguments compare in one step, argument by identity."""
+
+    def __init__(self):
+        super().__init__()
+        self.canon: dict = {}
+
+    def has(self, e: sp.Basic) -> bool:
+        return id(e) in self
+
+    def get_(self, e: sp.Basic):
+        return self[id(e)][1]
+
+    def put(self, e: sp.Basic, value) -> None:
+        self[id(e)] = (e, value)
+
+
+def _postorder(roots: Iterable[sp.Basic], done: Memo, skip=None):
+    """Distinct subexpression objects of ``roots`` not in ``done``, children
+    before parents. ``skip(e)`` true: the node is yielded without its arguments."""
+    stack = [(r, False) for r in roots]
+    seen: set[int] = set()
+    while stack:
+        e, ready = stack.pop()
+        if ready:
+            yield e
+            continue
+        if id(e) in done or id(e) in seen:
+            continue
+        seen.add(id(e))
+        stack.append((e, True))
+        if skip is None or not skip(e):
+            stack.extend((a, False) for a in e.args if id(a) not in done and id(a) not in seen)
+
+
+def xreplace(expr: sp.Basic, rule: Mapping, memo: Memo | None = None) -> sp.Basic:
+    """``expr.xreplace(rule)`` visiting each distinct subexpression once;
+    ``memo`` (old -> new) may be shared between calls with the same rule."""
+    memo = Memo() if memo is None else memo
+    for e in _postorder([expr], memo, skip=lambda e: e in rule):
+        if e in rule:
+            out = rule[e]
+        elif not e.args:
+            out = e
+        else:
+            args = [memo.get_(a) for a in e.args]
+            out = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
+        memo.put(e, memo.canon.setdefault(out, out))
+    return memo.get_(expr)
+
+
+def matrix_xreplace(m: sp.Matrix, rule: Mapping) -> sp.Matrix:
+    """``m.xreplace(rule)`` with one memo for all entries (shared subexpressions)."""
+    memo = Memo()
+    return sp.Matrix(m.rows, m.cols, [xreplace(v, rule, memo) for v in m])
+
+
+def free_symbols(exprs: Iterable[sp.Basic], memo: Memo | None = None) -> set:
+    """Union of the free symbols of ``exprs`` (each distinct subexpression once)."""
+    memo = Memo() if memo is None else memo
+    roots = [sp.sympify(e) for e in exprs]
+    for e in _postorder(roots, memo):
+        if e.is_Symbol:
+            memo.put(e, frozenset((e,)))
+        elif not e.args:
+            memo.put(e, frozenset())
+        else:
+            memo.put(e, frozenset().union(*(memo.get_(a) for a in e.args)))
+    return set().union(*(memo.get_(r) for r in roots))
+
+
+def diff(expr: sp.Expr, s: sp.Symbol, memo: Memo, symbols: Memo) -> sp.Expr:
+    """``expr.diff(s)`` node by node as SymPy evaluates it (Add, Mul, Pow and
+    functions of one argument by their ``_eval_derivative`` rules; anything
+    else by SymPy itself). ``memo`` holds derivatives in ``s``, ``symbols`` the
+    free symbols of each subexpression (share it between variables)."""
+    free_symbols([expr], symbols)
+    d = memo.get_
+    for e in _postorder([expr], memo, skip=lambda e: s not in symbols.get_(e)):
+        if s not in symbols.get_(e):
+            out = sp.S.Zero
+        elif e == s:
+            out = sp.S.One
+        elif e.is_Add:
+            out = e.func(*[d(a) for a in e.args])
+        elif e.is_Mul:
+            args = list(e.args)
+            out = sp.Add.fromiter([reduce(lambda x, y: x * y, args[:i] + [d(a)] + args[i + 1:], sp.S.One)
+                                   for i, a in enumerate(args) if d(a)])
+        elif e.is_Pow:
+            base, exp = e.args
+            out = e * (d(exp) * sp.log(base) + d(base) * exp / base)
+        elif isinstance(e, sp.Function) and len(e.args) == 1:
+            out = sp.Add(e.fdiff(1) * d(e.args[0]))
+        else:
+            out = sp.diff(e, s)
+        memo.put(e, out)
+    return d(expr)
+
+
+def jacobian(m: sp.Matrix, variables: Iterable[sp.Symbol]) -> sp.Matrix:
+    """``m.jacobian(variables)`` (rows: entries of m, columns: variables)."""
+    variables = list(variables)
+    symbols = Memo()
+    memos = [Memo() for _ in variables]
+    return sp.Matrix(len(m), len(variables),
+                     lambda i, j: diff(m[i], variables[j], memos[j], symbols))
+
+
+class Substitution:
+    """``obj.xreplace(rule)`` for expressions and matrices, with one memo kept
+    across calls: every matrix built from the same subexpressions (J, G, the
+    laws and gains) pays for each distinct subexpression once."""
+
+    def __init__(self, rule: Mapping):
+        self.rule = dict(rule)
+        self.memo = Memo()
+
+    def __call__(self, obj):
+        if isinstance(obj, sp.MatrixBase):
+            out = sp.Matrix(obj.rows, obj.cols, [xreplace(v, self.rule, self.memo) for v in obj])
+            return out.as_immutable() if isinstance(obj, sp.ImmutableMatrix) else out
+        return xreplace(sp.sympify(obj), self.rule, self.memo)

@@ -29,7 +29,10 @@ def run(args) -> int:
     arm = load_arm(args.arm)
     d = derive(arm)
     report_warnings(d)
-    files = generate_files(d, None, args.real, ParamsMode(args.params))  # hash of the bytes load_arm read
+    notes: list[str] = []
+    files = generate_files(d, None, args.real, ParamsMode(args.params), notes)  # hash of the bytes load_arm read
+    for note in notes:
+        print(f"derive: warning: {note}", file=sys.stderr)
     target = Path(args.out) / arm.name
     done = write_tree(target, files)   # only derive's previous files are replaced; sim/, build/ stay
     kept = f" (kept what derive did not write: {', '.join(done.kept)})" if done.kept else ""

@@ -24,8 +24,12 @@ def _number(x: sp.Number) -> float:
     return float(x)
 
 
-def to_sx(expr: sp.Expr, env: dict, memo: dict) -> ca.SX:
-    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars."""
+def to_sx(expr: sp.Expr, env: dict, memo: dict, constants: dict | None = None) -> ca.SX:
+    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars.
+    With ``constants`` (a dict), every number but 0 and +-1 becomes an SX
+    symbol, one per value, recorded there (number -> symbol): CasADi then
+    folds no constants, and the graph shows every operation the printed code
+    inherits (derive.codegen.accuracy analyses that graph)."""
     hit = memo.get(expr)
     if hit is not None:
         return hit
@@ -35,20 +39,23 @@ def to_sx(expr: sp.Expr, env: dict, memo: dict) -> ca.SX:
         except KeyError:
             raise DerivationError(f"symbol {expr} has no value in the kernel") from None
     elif expr.is_Number:
-        out = ca.SX(_number(expr))
+        if constants is None or expr in (0, 1, -1):
+            out = ca.SX(_number(expr))
+        else:
+            out = constants.setdefault(expr, ca.SX.sym(f"c{len(constants)}"))
     elif expr.is_Add:
-        terms = [to_sx(a, env, memo) for a in expr.args]
+        terms = [to_sx(a, env, memo, constants) for a in expr.args]
         out = terms[0]
         for t in terms[1:]:
             out = out + t
     elif expr.is_Mul:
-        factors = [to_sx(a, env, memo) for a in expr.args]
+        factors = [to_sx(a, env, memo, constants) for a in expr.args]
         out = factors[0]
         for f in factors[1:]:
             out = out * f
     elif expr.is_Pow:
         base, exp = expr.args
-        b = to_sx(base, env, memo)
+        b = to_sx(base, env, memo, constants)
         if exp.is_Integer:
             k = int(exp)
             out = b ** abs(k) if k != -1 else 1 / b
@@ -57,17 +64,19 @@ def to_sx(expr: sp.Expr, env: dict, memo: dict) -> ca.SX:
         elif exp == sp.Rational(1, 2):
             out = ca.sqrt(b)
         else:
-            out = b ** to_sx(exp, env, memo)
+            out = b ** to_sx(exp, env, memo, constants)
     elif expr.func in _FUNCTIONS:
-        out = _FUNCTIONS[expr.func](to_sx(expr.args[0], env, memo))
+        out = _FUNCTIONS[expr.func](to_sx(expr.args[0], env, memo, constants))
     else:
         raise DerivationError(f"cannot translate {expr.func.__name__} to CasADi")
     memo[expr] = out
     return out
 
 
-def to_function(spec: KernelSpec) -> ca.Function:
-    """The CasADi Function of a kernel, with its port names."""
+def to_function(spec: KernelSpec, constants: dict | None = None) -> ca.Function:
+    """The CasADi Function of a kernel, with its port names. With ``constants``
+    (an empty dict, filled as in :func:`to_sx`) the numbers are a last input
+    port ``constants``, in the dict's order."""
     inputs = [ca.SX.sym(port.name, port.size) for port in spec.inputs]
     env = {sym: inputs[k][i] for k, port in enumerate(spec.inputs) for i, sym in enumerate(port.items)}
     memo: dict = {}
@@ -75,10 +84,14 @@ def to_function(spec: KernelSpec) -> ca.Function:
         A = ca.SX(solve.A.rows, solve.A.cols)
         for i in range(solve.A.rows):
             for j in range(solve.A.cols):
-                A[i, j] = to_sx(solve.A[i, j], env, memo)
-        b = ca.vertcat(*[to_sx(v, env, memo) for v in solve.b])
+                A[i, j] = to_sx(solve.A[i, j], env, memo, constants)
+        b = ca.vertcat(*[to_sx(v, env, memo, constants) for v in solve.b])
         y = ca.solve(A, b)
         env.update({u: y[i] for i, u in enumerate(solve.unknowns)})
-    outputs = [ca.vertcat(*[to_sx(sp.sympify(v), env, memo) for v in port.items]) for port in spec.outputs]
-    return ca.Function(spec.name, inputs, outputs, [p.name for p in spec.inputs],
-                       [p.name for p in spec.outputs], {"cse": True})
+    outputs = [ca.vertcat(*[to_sx(sp.sympify(v), env, memo, constants) for v in port.items])
+               for port in spec.outputs]
+    names = [p.name for p in spec.inputs]
+    if constants is not None:
+        inputs.append(ca.vertcat(*constants.values()) if constants else ca.SX(0, 1))
+        names.append("constants")
+    return ca.Function(spec.name, inputs, outputs, names, [p.name for p in spec.outputs], {"cse": True})

@@ -14,7 +14,7 @@ from derive.codegen.render import render
 from derive.codegen.views import arm_view, selftest_view
 
 REALS = ("double", "float")
-PINNED = ("sympy", "casadi", "numpy", "jinja2")  # exact versions in pyproject.toml: output depends on them
+PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # exact versions in pyproject.toml: output depends on them
 
 
 def library_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:
@@ -30,10 +30,13 @@ def library_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:
     }
 
 
-def c_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:
-    """The C library, its self-test and CMakeLists.txt, under ``c/``."""
+def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None = None) -> dict[str, str]:
+    """The C library, its self-test and CMakeLists.txt, under ``c/``; sentences
+    for the user (a real type too coarse for the arm) are appended to ``notes``."""
     v = arm_view(d, real, mode)
     t = selftest_view(d, v)
+    if notes is not None:
+        notes.extend(t.warnings)
     a = d.arm.name
     return {
         **library_files(d, real, mode),
@@ -60,12 +63,13 @@ def observer_manifest(d: Derivation) -> dict:
 
 
 def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "double",
-                   mode: ParamsMode = ParamsMode.BAKED) -> dict[str, str]:
+                   mode: ParamsMode = ParamsMode.BAKED, notes: list[str] | None = None) -> dict[str, str]:
     """Every generated file of one arm, with a manifest (no timestamps, no paths).
 
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
-    load_arm took of the very bytes it validated."""
-    files = {**c_files(d, real, mode), **python_files(d, mode)}
+    load_arm took of the very bytes it validated. Warnings about the
+    accuracy the real type can give are appended to ``notes``."""
+    files = {**c_files(d, real, mode, notes), **python_files(d, mode)}
     files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, {"real": real, "params": mode.value})
     return files
 

@@ -1,110 +1,139 @@
 """High-precision reference evaluation of a Derivation (the oracle of the tests
 and of the generated self-test vectors).
 
-Each law is lambdified over mpmath at 40 digits straight from the SymPy
-matrices (nothing from CasADi or the printers), and the step functions
-replicate the documented discretisation of the generated code: forward Euler
-for the integral of e (NPID) and for the observer state z (DOBC), the
-integrator held while a voltage limit is active, the observer fed the
-applied (limited) voltage.
+Each law is compiled straight from the SymPy matrices of the Derivation
+(nothing from CasADi or the printers) into a ball-arithmetic function
+(:mod:`derive.codegen.balls`), and the step functions replicate the documented
+discretisation of the generated code: forward Euler for the integral of e
+(NPID) and for the observer state z (DOBC), the integrator held while a
+voltage limit is active, the observer fed the applied (limited) voltage.
+
+Every result is a ball (python-flint ``arb``) whose radius bounds its error:
+:func:`certified` proves that a vector carries ``DIGITS`` correct digits
+(norm-wise), and the callers raise the working precision when it does not.
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-import mpmath
 import sympy as sp
+from flint import arb, arb_mat
 
+from derive.codegen.balls import BallFunction, ball, working_precision
 from derive.control.pipeline import Derivation
 
-DIGITS = 40
+DIGITS = 40               # proved correct digits of every reference vector (norm-wise)
+PRECISION = 160           # first working precision [bits] (48 digits)
+
+
+def certified(values, digits: int = DIGITS) -> bool:
+    """True when every ball's radius is at most 10^-digits times the vector's
+    largest magnitude (an exactly zero vector is certified); anything but a
+    sequence of balls (a result already proved otherwise) is taken as it is."""
+    if not isinstance(values, (list, tuple)):
+        return True
+    scale = max((abs(v).upper() for v in values), default=arb(0))
+    worst = max((v.rad() for v in values), default=arb(0))
+    if scale == 0:
+        return worst == 0
+    return bool(worst <= scale * arb(10) ** (-digits))
 
 
 class Reference:
-    """mpmath callables of one derivation (arm values baked in)."""
+    """Ball-arithmetic callables of one derivation (arm values baked in).
 
-    def __init__(self, d: Derivation, u_max: Sequence[float] | None = None):
+    Vectors in and out are sequences of numbers or balls; ``prec`` is the
+    working precision in bits (raise it when :func:`certified` fails)."""
+
+    def __init__(self, d: Derivation, u_max: Sequence[float] | None = None, prec: int = PRECISION):
         s = d.dynamics.sym
         self.n = n = d.n
+        self.prec = prec
         e, _ = d.tracking_error
         x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
 
-        def fn(args, m):
-            return sp.lambdify(args, d.measured(m), modules="mpmath")
+        def fn(name, args, *matrices):
+            exprs = [d.measured(v) for m in matrices for v in m]
+            return BallFunction(args, exprs, name)
 
-        self._gains = fn(list(s.theta), sp.Matrix.vstack(d.P.reshape(n * n, 1), d.D.reshape(n * n, 1),
-                                                         d.I.reshape(n * n, 1)))
-        self._mpc = fn(x, d.u_star)
-        self._npid = fn(x + list(s.int_e), d.u_npid)
-        self._e = fn(x, e)
-        self._dobc = fn(x + list(s.z), d.u_dobc)
-        self._J = fn(list(s.theta), d.J)
-        self._rhs = fn(list(s.theta + s.dtheta + s.z + s.u), d.numeric(d.observer.J_solve_rhs))
-        self._W = mpmath.matrix(d.W.tolist())
-        self._dhat = fn(list(s.dtheta + s.z), d.dhat)
-        self._z0 = fn(x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
+        self._gains = fn("gains", list(s.theta), d.P.reshape(n * n, 1), d.D.reshape(n * n, 1),
+                         d.I.reshape(n * n, 1))
+        self._mpc = fn("mpc", x, d.u_star)
+        self._npid = fn("npid", x + list(s.int_e), d.u_npid, e)
+        self._dobc = fn("dobc", x + list(s.z), d.u_dobc)
+        self._observer = fn("observer", list(s.theta + s.dtheta + s.z + s.u), d.J,
+                            d.numeric(d.observer.J_solve_rhs))
+        self._W = d.W
+        self._dhat = fn("dhat", list(s.dtheta + s.z), d.dhat)
+        self._z0 = fn("dobc_init", x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
+        self._J = fn("J", list(s.theta), d.J)
         limits = u_max if u_max is not None else [
             float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors]
-        self.u_max = [mpmath.mpf(v) for v in limits]
+        self.u_max = [float(v) for v in limits]
 
-    @staticmethod
-    def _vec(m) -> list:
-        return [m[i] for i in range(m.rows)] if hasattr(m, "rows") else list(m)
+    def _run(self, f: BallFunction, *vectors) -> list[arb]:
+        with working_precision(self.prec):
+            return f(*(v for vec in vectors for v in vec))
 
-    def gains(self, theta):
-        with mpmath.workdps(DIGITS):
-            return self._vec(self._gains(*theta))
+    def gains(self, theta) -> list[arb]:
+        """P, D, I row-major (3 n^2), eq. 35-37."""
+        return self._run(self._gains, theta)
 
-    def mpc(self, x):
-        with mpmath.workdps(DIGITS):
-            return self._vec(self._mpc(*x))
+    def mpc(self, x) -> list[arb]:
+        return self._run(self._mpc, x)
 
-    def npid(self, x, int_e):
-        with mpmath.workdps(DIGITS):
-            return self._vec(self._npid(*x, *int_e))
+    def npid(self, x, int_e) -> list[arb]:
+        return self._run(self._npid, x, int_e)[: self.n]
 
-    def dobc(self, x, z):
-        with mpmath.workdps(DIGITS):
-            return self._vec(self._dobc(*x, *z))
+    def dobc(self, x, z) -> list[arb]:
+        return self._run(self._dobc, x, z)
 
-    def observer(self, theta, dtheta, z, u):
-        with mpmath.workdps(DIGITS):
-            y = mpmath.lu_solve(self._J(*theta), self._rhs(*theta, *dtheta, *z, *u))
-            return self._vec(self._W * y)
+    def inertia(self, theta) -> list[arb]:
+        """J(theta) row-major (n^2), eq. 12."""
+        return self._run(self._J, theta)
 
-    def dhat(self, x, z):
+    def observer(self, theta, dtheta, z, u) -> list[arb]:
+        """z' = W y with J y = G - B u - W theta' - z (eq. 21), solved in balls."""
+        n = self.n
+        with working_precision(self.prec):
+            out = self._observer(*theta, *dtheta, *z, *u)
+            J = arb_mat(n, n, out[: n * n])
+            y = J.solve(arb_mat(n, 1, out[n * n:]))
+            return [sum((ball(self._W[i, j]) * y[j, 0] for j in range(i + 1)), arb(0)) for i in range(n)]
+
+    def dhat(self, x, z) -> list[arb]:
         """The estimate dhat = B^-1 (z + W theta') (eq. 22) at input x, state z."""
-        with mpmath.workdps(DIGITS):
-            n = self.n
-            return self._vec(self._dhat(*x[n:2 * n], *z))
+        n = self.n
+        return self._run(self._dhat, x[n:2 * n], z)
 
-    def dobc_init(self, x):
-        with mpmath.workdps(DIGITS):
-            return self._vec(self._z0(*x[: 4 * self.n]))
+    def dobc_init(self, x) -> list[arb]:
+        return self._run(self._z0, x[: 4 * self.n])
 
     def saturate(self, u) -> tuple[list, list[bool]]:
         out, hit = [], []
         for v, lim in zip(u, self.u_max):
             limited = lim > 0 and abs(v) > lim
-            out.append(mpmath.sign(v) * lim if limited else v)
+            out.append((ball(lim) if v > 0 else -ball(lim)) if limited else v)
             hit.append(limited)
         return out, hit
 
     def npid_step(self, int_e, x, dt):
         """(u, next int_e) of one NPID step (eq. 34), forward Euler, integrator held when limited."""
-        with mpmath.workdps(DIGITS):
-            u, hit = self.saturate(self.npid(x, int_e))
-            e = self._vec(self._e(*x))
-            return u, [i if h else i + dt * ei for i, ei, h in zip(int_e, e, hit)]
+        n = self.n
+        with working_precision(self.prec):
+            out = self._npid(*x, *int_e)
+            u, hit = self.saturate(out[:n])
+            step = ball(dt)
+            return u, [ball(i) if h else ball(i) + step * ei for i, ei, h in zip(int_e, out[n:], hit)]
 
     def dobc_step(self, z, x, dt):
         """(u, next z) of one DOBC step (eq. 21, 22, 27), forward Euler, observer fed the applied u."""
-        with mpmath.workdps(DIGITS):
-            u, _ = self.saturate(self.dobc(x, z))
-            n = self.n
+        n = self.n
+        with working_precision(self.prec):
+            u, _ = self.saturate(self._dobc(*x, *z))
             zdot = self.observer(x[:n], x[n:2 * n], z, u)
-            return u, [zi + dt * r for zi, r in zip(z, zdot)]
+            step = ball(dt)
+            return u, [ball(zi) + step * r for zi, r in zip(z, zdot)]
 
     def mpc_step(self, x):
-        with mpmath.workdps(DIGITS):
-            return self.saturate(self.mpc(x))[0]
+        return self.saturate(self.mpc(x))[0]

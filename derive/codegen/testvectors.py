@@ -1,29 +1,34 @@
 """Self-test vectors: inputs chosen exactly representable in float and double
 (multiples of 2^-10), expected outputs from the high-precision reference of the
-SymPy derivation (derive.codegen.reference), never from the generated code.
+SymPy derivation (derive.codegen.reference), never from the generated code,
+each with its tolerance.
 
-Tolerances (norm-wise relative error per output vector, ||got - ref||_inf /
-||ref||_inf): double 1e-12; float ``float_bound(K, steps)`` = 16 (K + steps) 2^-24,
-the first-order rounding bound gamma_K of K operations in single precision
-(Higham, Accuracy and Stability, 3.1) with a factor 16 for cancellation, plus
-one rounding per Euler step of a sequence.
+The tolerance of every element is derived from the computation
+(:mod:`derive.codegen.bounds`): twice the first-order rounding bound of the
+generated code at that point (the factor covers the second-order terms), plus
+the rounding of the expected value itself to the real type. It follows the
+arm's conditioning: tight where the arm is well conditioned, looser (and said
+so per output) where J is nearly singular.
 """
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from derive.codegen.reference import Reference
+from derive.codegen.accuracy import UNIT
+from derive.codegen.balls import to_float
+from derive.codegen.bounds import ApiBounds, relative
+from derive.codegen.reference import DIGITS, Reference, certified
+from derive.errors import DerivationError
 
-DOUBLE_TOL = 1e-12
+DOUBLE_TOL = 1e-12    # the README's claim for the packaged (well-conditioned) arms' single steps
 SEQUENCE_STEPS = 1000
 SEQUENCE_DT = 2.0 ** -10
-
-
-def float_bound(operations: int, steps: int = 0) -> float:
-    """Stated bound on the norm-wise relative error of float results."""
-    return 16.0 * (operations + steps) * 2.0 ** -24
+SAFETY = 2.0          # first-order bound times this covers the second-order terms
+TINY = {"double": 2.0 ** -1022, "float": 2.0 ** -126}  # underflow of one operation
 
 
 def _dyadic(rng: np.random.Generator, low: float, high: float, size: int) -> list[float]:
@@ -46,6 +51,26 @@ class Case:
     z0: tuple[float, ...]
 
 
+OUTPUTS = ("gains", "mpc", "npid_u", "npid_next", "dobc_u", "dobc_next", "z0")   # the checked fields of a Case
+CHECKS = {"gains": "gains P, D, I", "mpc": "mpc_step u", "npid_u": "npid_step u", "npid_next": "npid_step int_e",
+          "dobc_u": "dobc_step u", "dobc_next": "dobc_step z", "z0": "dobc_init z",
+          "seq_npid_u": "npid sequence u", "seq_int_e": "npid sequence int_e", "seq_dobc_u": "dobc sequence u",
+          "seq_z": "dobc sequence z"}
+
+
+@dataclass(frozen=True)
+class SequenceVectors:
+    """The last u and the final state of each form after the steps, from init."""
+
+    npid_u: tuple[float, ...]
+    int_e: tuple[float, ...]
+    dobc_u: tuple[float, ...]
+    z: tuple[float, ...]
+    npid_states: np.ndarray     # (steps, n) int_e before each step
+    dobc_states: np.ndarray     # (steps, n) z before each step
+    radii: np.ndarray           # (steps, 4, n) radii of the reference's u and state at each step
+
+
 def sequence_input(k: int, n: int) -> list[float]:
     """Input at step k of the self-test sequence: dyadic, the same formula in C."""
     out = []
@@ -54,6 +79,21 @@ def sequence_input(k: int, n: int) -> list[float]:
             m = (k * (2 * i + 3 + block) + 17 * i + 5 * block) % 129
             out.append(m / 128.0 - 0.5)
     return out
+
+
+def _proved(compute, ref: Reference, tries: int = 4):
+    """``compute()`` -> list of ball vectors (or None), rerun at twice the working
+    precision until it is not None and every vector is certified to DIGITS digits."""
+    for _ in range(tries):
+        vectors = compute()
+        if vectors is not None and all(certified(v) for v in vectors):
+            return vectors
+        ref.prec *= 2
+    raise DerivationError(f"reference vectors not certified to {DIGITS} digits at {ref.prec // 2} bits")
+
+
+def _floats(v) -> tuple[float, ...]:
+    return tuple(to_float(a) for a in v)
 
 
 def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
@@ -65,24 +105,92 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
         x = (_dyadic(rng, -3.0, 3.0, n) + _dyadic(rng, -3.0, 3.0, n) + _dyadic(rng, -3.0, 3.0, n)
              + _dyadic(rng, -2.0, 2.0, n) + _dyadic(rng, -5.0, 5.0, n))
         int_e, z = _dyadic(rng, -1.0, 1.0, n), _dyadic(rng, -1.0, 1.0, n)
-        nu, nn = ref.npid_step(int_e, x, SEQUENCE_DT)
-        du, dn = ref.dobc_step(z, x, SEQUENCE_DT)
-        f = lambda v: tuple(float(a) for a in v)  # noqa: E731
-        out.append(Case(tuple(x), tuple(int_e), tuple(z), f(ref.gains(x[:n])), f(ref.mpc_step(x)),
-                        f(nu), f(nn), f(du), f(dn), f(ref.dobc_init(x))))
+
+        def compute():
+            return (ref.gains(x[:n]), ref.mpc_step(x), *ref.npid_step(int_e, x, SEQUENCE_DT),
+                    *ref.dobc_step(z, x, SEQUENCE_DT), ref.dobc_init(x))
+        out.append(Case(tuple(x), tuple(int_e), tuple(z), *map(_floats, _proved(compute, ref))))
     return tuple(out)
 
 
-def sequence(ref: Reference, steps: int = SEQUENCE_STEPS) -> dict[str, tuple[float, ...]]:
-    """Final u and state after ``steps`` steps of each form from init."""
+def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> SequenceVectors:
+    """Final u and state after ``steps`` steps of each form from init.
+
+    Each step starts from the midpoints of the previous state (a ball carried
+    through 1000 steps would measure interval arithmetic's overestimation,
+    not the error) and its own result is certified. How the steps' radii r_k
+    propagate to the end is bounded as the generated code's errors are, with
+    the exact Jacobians A_k of the steps in the state (``bounds``):
+    e_{k+1} <= |A_k| e_k + r_k. The precision is raised until that bound too
+    is below 10^-DIGITS of the result."""
     n = ref.n
-    x0 = sequence_input(0, n)
-    int_e = [0] * n
-    z = ref.dobc_init(x0)
-    nu = du = None
-    for k in range(steps):
-        x = sequence_input(k, n)
-        nu, int_e = ref.npid_step(int_e, x, SEQUENCE_DT)
-        du, z = ref.dobc_step(z, x, SEQUENCE_DT)
-    f = lambda v: tuple(float(a) for a in v)  # noqa: E731
-    return {"npid_u": f(nu), "int_e": f(int_e), "dobc_u": f(du), "z": f(z)}
+
+    def compute():
+        int_e = [0] * n
+        z = [v.mid() for v in ref.dobc_init(sequence_input(0, n))]
+        nu = du = None
+        states = np.zeros((2, steps, n))
+        radii = np.zeros((steps, 4, n))
+        for k in range(steps):
+            x = sequence_input(k, n)
+            states[0, k], states[1, k] = _floats(int_e), _floats(z)
+            nu, int_e = ref.npid_step(int_e, x, SEQUENCE_DT)
+            du, z = ref.dobc_step(z, x, SEQUENCE_DT)
+            if not all(certified(v) for v in (nu, int_e, du, z)):
+                return None
+            radii[k] = [[to_float(v.rad()) for v in vec] for vec in (nu, int_e, du, z)]
+            int_e, z = [v.mid() for v in int_e], [v.mid() for v in z]
+        out = SequenceVectors(*map(_floats, (nu, int_e, du, z)), states[0], states[1], radii)
+        for form, (iu, ist), (u, st) in (("npid", (0, 1), (out.npid_u, out.int_e)),
+                                          ("dobc", (2, 3), (out.dobc_u, out.z))):
+            b_u, b_s = bounds.propagate(form, out.npid_states if form == "npid" else out.dobc_states,
+                                        [sequence_input(k, n) for k in range(steps)], SEQUENCE_DT,
+                                        radii[:, iu], radii[:, ist])
+            if relative(b_u, u) > 10.0 ** -DIGITS or relative(b_s, st) > 10.0 ** -DIGITS:
+                return None
+        return [out]
+    return _proved(compute, ref)[0]
+
+
+def tolerance(bound: np.ndarray, values: Sequence[float], real: str) -> tuple[float, ...]:
+    """SAFETY x bound + the rounding of the expected value + one underflow, rounded up
+    to 3 significant digits (the same literal on every machine)."""
+    tol = SAFETY * np.asarray(bound) + 2 * UNIT[real] * np.abs(values) + TINY[real]
+    return tuple(_round_up(float(t)) for t in tol)
+
+
+def _round_up(x: float) -> float:
+    if x <= 0 or not math.isfinite(x):
+        return x
+    e = math.floor(math.log10(x)) - 2
+    return float(math.ceil(x / 10.0 ** e) * 10.0 ** e) if e > -300 else x
+
+
+def case_tolerances(bounds: ApiBounds, cs: Sequence[Case], real: str) -> tuple[dict[str, tuple], ...]:
+    """Per case, the tolerance of every element of every checked output."""
+    n = bounds.n
+    x = np.array([c.x for c in cs])
+    npid = bounds.npid_step(np.array([c.int_e for c in cs]), x, SEQUENCE_DT)
+    dobc = bounds.dobc_step(np.array([c.z for c in cs]), x, SEQUENCE_DT)
+    rows = {"gains": bounds.gains(x[:, :n]), "mpc": bounds.mpc_step(x), "npid_u": npid.u_bound,
+            "npid_next": npid.next_bound, "dobc_u": dobc.u_bound, "dobc_next": dobc.next_bound,
+            "z0": bounds.dobc_init(x)}
+    return tuple({f: tolerance(rows[f][k], getattr(c, f), real) for f in OUTPUTS} for k, c in enumerate(cs))
+
+
+def sequence_tolerances(bounds: ApiBounds, seq: SequenceVectors, real: str) -> dict[str, tuple]:
+    """The tolerance of each element of the sequence's last u and final states."""
+    n, steps = bounds.n, len(seq.npid_states)
+    xs = [sequence_input(k, n) for k in range(steps)]
+    nu, ns, _ = bounds.sequence("npid", seq.npid_states, xs, SEQUENCE_DT)
+    du, ds, _ = bounds.sequence("dobc", seq.dobc_states, xs, SEQUENCE_DT)
+    return {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real),
+            "seq_dobc_u": tolerance(du, seq.dobc_u, real), "seq_z": tolerance(ds, seq.z, real)}
+
+
+def accuracy(cs: Sequence[Case], tols: Sequence[dict], seq: SequenceVectors, seq_tols: dict) -> dict[str, float]:
+    """Stated accuracy per output: the largest norm-wise relative tolerance over the vectors."""
+    out = {CHECKS[f]: max(relative(np.array(t[f]), getattr(c, f)) for c, t in zip(cs, tols)) for f in OUTPUTS}
+    values = {"seq_npid_u": seq.npid_u, "seq_int_e": seq.int_e, "seq_dobc_u": seq.dobc_u, "seq_z": seq.z}
+    out.update({CHECKS[f]: relative(np.array(seq_tols[f]), values[f]) for f in values})
+    return out

@@ -9,6 +9,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
@@ -122,51 +124,74 @@ def observer_notes(d: Derivation) -> tuple[str, ...]:
     return tuple(lines)
 
 
-@dataclass(frozen=True)
-class Tolerances:
-    gains: str
-    mpc: str
-    npid: str
-    dobc: str
-    dobc_init: str
-    observer: str
-    seq: str
+USEFUL = 1e-2   # a relative error above this is not a useful accuracy for a controller
 
 
 @dataclass(frozen=True)
 class SelftestView:
-    """Test vectors and stated tolerances for the C self-test."""
+    """Test vectors, their tolerances (per element) and the stated accuracy for the C self-test."""
 
     rule: str
+    accuracy: tuple[tuple[str, str], ...]      # (output, largest norm-wise relative tolerance)
     cases: tuple
+    tols: tuple                                # per case: a namespace of tolerance literals per output
     seq: object
+    seq_tol: object
     steps: int
     dt: str
     c128: str
     c05: str
     fabs: str
-    tol: Tolerances
+    warnings: tuple[str, ...]
+
+
+def _namespace(name: str, fields: dict) -> object:
+    return type(name, (), fields)
+
+
+def accuracy_warnings(real: str, acc: dict[str, float], cond: float) -> tuple[str, ...]:
+    """A sentence when some output of a ``real`` build cannot be accurate to USEFUL."""
+    poor = {k: v for k, v in acc.items() if v > USEFUL}
+    if not poor:
+        return ()
+    worst = max(poor.values())
+    names = ", ".join(sorted(poor))
+    return (f"--real {real}: expected relative error up to {worst:.2g} ({names}; a derived rounding bound, "
+            f"unit roundoff {2.0 ** -53 if real == 'double' else 2.0 ** -24:.2g}): J(theta) has condition number "
+            f"up to {cond:.2g} at the test states, and the observer's solve and the laws amplify the rounding "
+            f"of {real} by about that much, so a {real} build gives no useful accuracy for this arm"
+            + ("; use --real double" if real == "float" else ""),)
 
 
 def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
-    """Reference vectors (derive.codegen.testvectors) as C literals of the view's real type."""
+    """Reference vectors (derive.codegen.testvectors) with their derived tolerances,
+    as C literals of the view's real type."""
     from derive.codegen import testvectors as tv
+    from derive.codegen.balls import to_float
+    from derive.codegen.bounds import ApiBounds
     from derive.codegen.reference import Reference
 
+    mode = ParamsMode.RUNTIME if v.runtime else ParamsMode.BAKED
     ref = Reference(d)
+    bounds = ApiBounds(d, v.real, mode)
     lit = lambda xs: tuple(c_literal(x, v.real) for x in xs)  # noqa: E731
     raw = tv.cases(ref, count)
+    seq = tv.sequence(ref, bounds)
+    tols = tv.case_tolerances(bounds, raw, v.real)
+    seq_tols = tv.sequence_tolerances(bounds, seq, v.real)
+    acc = tv.accuracy(raw, tols, seq, seq_tols)
+    n = d.n
+    cond = max(float(np.linalg.cond(np.array([to_float(a) for a in ref.inertia(c.x[:n])]).reshape(n, n)))
+               for c in raw)
     cases = tuple(type(c)(*(lit(getattr(c, f)) for f in c.__dataclass_fields__)) for c in raw)
-    seq = {k: lit(val) for k, val in tv.sequence(ref).items()}
-    ops = {k.name: k.operations for k in v.kernels}
-    if v.real == "double":
-        tol = Tolerances(*(c_literal(tv.DOUBLE_TOL, "double"),) * 7)
-        rule = f"double {tv.DOUBLE_TOL:g}"
-    else:
-        b = lambda *names, steps=0: c_literal(tv.float_bound(sum(ops[n] for n in names), steps), "float")  # noqa: E731
-        tol = Tolerances(b("gains"), b("mpc"), b("npid"), b("dobc"), b("dobc_init"), b("dobc", "observer"),
-                         b("npid", "dobc", "observer", steps=tv.SEQUENCE_STEPS))
-        rule = "float 16 (K + steps) 2^-24 for a kernel of K operations (derive.codegen.testvectors)"
-    return SelftestView(rule=rule, cases=cases, seq=type("Seq", (), seq), steps=tv.SEQUENCE_STEPS,
-                        dt=c_literal(tv.SEQUENCE_DT, v.real), c128=c_literal(128.0, v.real),
-                        c05=c_literal(0.5, v.real), fabs="fabsf" if v.real == "float" else "fabs", tol=tol)
+    seq_fields = ("npid_u", "int_e", "dobc_u", "z")
+    return SelftestView(
+        rule=("element-wise |got - want| <= tol, tol = 2 x the first-order rounding bound of the generated "
+              "code at that point (derive.codegen.accuracy) + the rounding of want"),
+        accuracy=tuple((name, f"{value:.2g}") for name, value in acc.items()),
+        cases=cases, tols=tuple(_namespace("Tol", {f: lit(t[f]) for f in t}) for t in tols),
+        seq=_namespace("Seq", {f: lit(getattr(seq, f)) for f in seq_fields}),
+        seq_tol=_namespace("SeqTol", {f: lit(t) for f, t in seq_tols.items()}),
+        steps=tv.SEQUENCE_STEPS, dt=c_literal(tv.SEQUENCE_DT, v.real), c128=c_literal(128.0, v.real),
+        c05=c_literal(0.5, v.real), fabs="fabsf" if v.real == "float" else "fabs",
+        warnings=accuracy_warnings(v.real, acc, cond))

@@ -1,0 +1,213 @@
+"""Error bounds of the generated API, entry point by entry point.
+
+:mod:`derive.codegen.accuracy` bounds a straight-line computation; this
+module wires the kernels as the glue does (templates/c/arm.c.jinja, the
+Python module) and as :class:`derive.codegen.reference.Reference` replicates
+it: a voltage limit clips u (a 1-Lipschitz map, so the unclipped bound still
+holds near the limit), holds the integrator, and the observer is fed the
+applied u. A state carried from step to step (the integral of e, the
+observer state z) enters with an error bound b, propagated through the exact
+Jacobian A of the step in the state: b_next = |A| b + l, l the step's own
+rounding bound (Higham, sec. 3.3, applied per step).
+
+Where a clip decision lies within the bound of its limit, the generated code
+may decide either way: the bound then covers both branches (for the held
+integrator, the jump dt e). Everything is batched: K points at once, arrays
+of shape (K, ...); n joints, x = (theta, theta', yd, yd', yd'') of 5 n.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from derive.codegen.accuracy import CONST, KernelModel, Tape, weights
+from derive.codegen.kernels import ParamsMode, kernel_specs
+from derive.control.pipeline import Derivation
+
+_X = ("theta", "dtheta", "yd", "dyd", "ddyd")
+
+
+@dataclass(frozen=True)
+class StepBounds:
+    """One step of a stateful entry point at K points: values (double) and bounds, (K, n) each."""
+
+    u: np.ndarray           # applied u (after the limits)
+    u_bound: np.ndarray
+    next: np.ndarray        # next state
+    next_bound: np.ndarray
+    ambiguous: np.ndarray   # (K,) a clip decision within the bound of its limit
+
+
+@dataclass(frozen=True)
+class _Entry:
+    tape: Tape
+    outputs: tuple[int, ...]
+    wrt: tuple[int, ...]
+    sizes: tuple[int, ...]
+
+
+class ApiBounds:
+    """First-order rounding bounds of the generated entry points of one arm
+    for one real type. ``exact_inputs``: the inputs are exact in that type
+    (the self-test's dyadic vectors); otherwise each carries one rounding."""
+
+    def __init__(self, d: Derivation, real: str, mode: ParamsMode = ParamsMode.BAKED, exact_inputs: bool = True,
+                 u_max: Sequence[float] | None = None):
+        self.n = n = d.n
+        self.w = weights(real, exact_inputs)
+        self.u_max = np.array(u_max if u_max is not None else [
+            float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors])
+        models = {s.name: KernelModel(s) for s in kernel_specs(d, mode)}
+        params = [float(v) for _, v in d.values] if mode is ParamsMode.RUNTIME else []
+
+        def start() -> tuple[Tape, dict]:
+            t = Tape()
+            x = t.leaf("x", 5 * n)
+            ports = {name: x[k * n:(k + 1) * n] for k, name in enumerate(_X)}
+            ports["int_e"] = ports["z"] = t.leaf("s", n)
+            ports["dt"] = t.leaf("dt", 1)
+            ports["p"] = [t.constant(v) for v in params]
+            return t, ports
+
+        def call(t: Tape, name: str, ports: dict) -> list[list[int]]:
+            return t.kernel(models[name], ports)
+
+        self._entries: dict[str, _Entry] = {}
+        for name in ("gains", "mpc", "dobc_init", "npid"):
+            t, ports = start()
+            outs = call(t, name, ports)
+            self._entries[name] = _Entry(t, tuple(v for o in outs for v in o), tuple(ports["z"]),
+                                         tuple(len(o) for o in outs))
+        t, ports = start()
+        (u,) = call(t, "dobc", ports)
+        keep, clip = t.leaf("keep", n, kind=None), t.leaf("clip", n, kind=CONST)
+        applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
+        (z_next,) = call(t, "observer", {**ports, "u": applied})
+        self._entries["dobc"] = _Entry(t, (*u, *z_next), tuple(ports["z"]), (n, n))
+
+    def _eval(self, name: str, x, s=None, dt=0.0, keep=None, clip=None):
+        """Per output port: values (K, size), bounds (K, size), Jacobians in the state (K, size, n)."""
+        e, n = self._entries[name], self.n
+        x = np.atleast_2d(np.asarray(x, float))
+        K = x.shape[0]
+        inputs = {"x": x.T, "s": (np.zeros((K, n)) if s is None else np.atleast_2d(np.asarray(s, float))).T,
+                  "dt": np.full((1, K), float(dt))}
+        if name == "dobc":
+            inputs["keep"] = (np.ones((K, n)) if keep is None else keep).T
+            inputs["clip"] = (np.zeros((K, n)) if clip is None else clip).T
+        if name == "gains":
+            inputs["x"] = np.vstack([x.T[:n], np.zeros((4 * n, K))]) if x.shape[1] == n else x.T
+        values, bound, jac = e.tape.evaluate(inputs, e.outputs, e.wrt, self.w)
+        out, k = [], 0
+        for size in e.sizes:
+            out.append((values[k:k + size].T, bound[k:k + size].T, np.moveaxis(jac[k:k + size], 2, 0)))
+            k += size
+        return out
+
+    def gains(self, theta) -> np.ndarray:
+        """Bounds on P, D, I (row-major, (K, 3 n^2)) at K angle vectors (K, n)."""
+        return np.hstack([b for _, b, _ in self._eval("gains", theta)])
+
+    def dobc_init(self, x) -> np.ndarray:
+        """Bounds on z(0), (K, n)."""
+        return self._eval("dobc_init", x)[0][1]
+
+    def _clip(self, u_raw: np.ndarray, b_raw: np.ndarray):
+        """(applied u, its bound, limited, near a limit) for the voltage limits."""
+        lim = self.u_max
+        limited = (lim > 0) & (np.abs(u_raw) > lim)
+        near = (lim > 0) & (np.abs(np.abs(u_raw) - lim) <= b_raw)
+        u = np.where(limited, np.sign(u_raw) * lim, u_raw)
+        b_lim = lim * self.w[CONST]
+        bound = np.where(near, np.maximum(b_raw, b_lim), np.where(limited, b_lim, b_raw))
+        return u, bound, limited, near
+
+    def mpc_step(self, x) -> np.ndarray:
+        """Bounds on the applied u of mpc_step, (K, n)."""
+        u_raw, b_raw, _ = self._eval("mpc", x)[0]
+        return self._clip(u_raw, b_raw)[1]
+
+    def _steps(self, form: str, states, xs, dt):
+        """The steps of ``form`` at K points, each from an exact state: a dict of arrays."""
+        states, xs = np.atleast_2d(np.asarray(states, float)), np.atleast_2d(np.asarray(xs, float))
+        (u_raw, l_raw, A_raw), (nxt, l_next, A_next) = self._eval(form, xs, states, dt)
+        limited = (self.u_max > 0) & (np.abs(u_raw) > self.u_max)
+        ev = {"state": states, "x": xs, "dt": dt, "u_raw": u_raw, "l_raw": l_raw, "A_raw": A_raw,
+              "next": nxt, "l_next": l_next, "A_next": A_next, "limited": limited}
+        if form == "dobc" and limited.any():  # the observer is fed the limited u
+            (_, _, _), (nxt, l_next, A_next) = self._eval("dobc", xs, states, dt, (~limited).astype(float),
+                                                          np.sign(u_raw) * self.u_max)
+            ev.update({"next": nxt, "l_next": l_next, "A_next": A_next})
+        return ev
+
+    def _combine(self, form: str, ev: dict, k: slice, b: np.ndarray) -> StepBounds:
+        """Bounds of the steps ``k`` of ``ev`` from states whose errors are bounded by b (rows)."""
+        u_raw, limited = ev["u_raw"][k], ev["limited"][k]
+        b_raw = np.einsum("kij,kj->ki", np.abs(ev["A_raw"][k]), b) + ev["l_raw"][k]
+        b_step = np.einsum("kij,kj->ki", np.abs(ev["A_next"][k]), b) + ev["l_next"][k]
+        u, b_u, _, near = self._clip(u_raw, b_raw)
+        state, nxt = ev["state"][k], ev["next"][k]
+        if form == "npid":  # the integrator is held at a limit
+            nxt, b_next = np.where(limited, state, nxt), np.where(limited, b, b_step)
+            b_next = np.where(near, np.maximum(b, b_step) + np.abs(ev["next"][k] - state), b_next)
+        else:
+            b_next = b_step
+            for row in np.flatnonzero(near.any(axis=1)):  # the other decision at the rows in doubt
+                keep = ev["limited"][k][row] == near[row]
+                clip = np.sign(u_raw[row]) * self.u_max
+                (_, _, _), (alt, l_alt, A_alt) = self._eval("dobc", ev["x"][k][row], state[row], ev["dt"],
+                                                            keep[None, :].astype(float), clip[None, :])
+                b_alt = np.abs(A_alt[0]) @ b[row] + l_alt[0]
+                b_next[row] = np.maximum(b_step[row], b_alt) + np.abs(alt[0] - nxt[row])
+        return StepBounds(u, b_u, nxt, b_next, near.any(axis=1))
+
+    def npid_step(self, int_e, x, dt, b_state=None) -> StepBounds:
+        """NPID steps from int_e (K, n), whose error is bounded by ``b_state`` (default exact)."""
+        ev = self._steps("npid", int_e, x, dt)
+        b = np.zeros_like(ev["u_raw"]) if b_state is None else np.atleast_2d(b_state)
+        return self._combine("npid", ev, slice(None), b)
+
+    def dobc_step(self, z, x, dt, b_state=None) -> StepBounds:
+        """DOBC steps from z (K, n), whose error is bounded by ``b_state`` (default exact)."""
+        ev = self._steps("dobc", z, x, dt)
+        b = np.zeros_like(ev["u_raw"]) if b_state is None else np.atleast_2d(b_state)
+        return self._combine("dobc", ev, slice(None), b)
+
+    def sequence(self, form: str, states, xs, dt) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Bounds on the last u and on the final state after the steps of
+        ``form`` ('npid' or 'dobc') along the reference trajectory:
+        ``states[k]`` the state before step k, ``xs[k]`` its input. The steps
+        are evaluated at once, then the state's bound is carried step by step.
+        Returns (u bound, final state bound, a clip decision was in doubt)."""
+        ev = self._steps(form, states, xs, dt)
+        b = np.zeros((1, self.n))
+        doubt = False
+        step = None
+        for k in range(len(ev["x"])):
+            step = self._combine(form, ev, slice(k, k + 1), b)
+            b, doubt = step.next_bound, doubt or bool(step.ambiguous[0])
+        return step.u_bound[0], b[0], doubt
+
+
+    def propagate(self, form: str, states, xs, dt, r_u, r_s) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on the last u and the final state when step k itself errs by
+        at most r_u[k] (its u) and r_s[k] (its next state), propagated with the
+        steps' exact Jacobians: the accumulated error of another evaluation
+        of the same steps (the reference's, whose local radii are r)."""
+        ev = self._steps(form, states, xs, dt)
+        e = np.zeros(self.n)
+        e_u = e
+        for k in range(len(ev["x"])):
+            e_u = np.abs(ev["A_raw"][k]) @ e + r_u[k]
+            moved = np.abs(ev["A_next"][k]) @ e
+            e = (np.where(ev["limited"][k], e, moved) if form == "npid" else moved) + r_s[k]
+        return e_u, e
+
+
+def relative(bound, values) -> float:
+    """Norm-wise relative size of a bound: max bound / max |value| (0 or inf when the values are 0)."""
+    scale = float(np.max(np.abs(values))) if np.size(values) else 0.0
+    top = float(np.max(bound)) if np.size(bound) else 0.0
+    return top / scale if scale > 0 else (0.0 if top == 0 else float("inf"))

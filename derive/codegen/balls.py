@@ -62,13 +62,14 @@ class BallFunction:
 
     def __init__(self, args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr], name: str = "f"):
         self.name = name
-        self._slot: dict[sp.Basic, str] = {}
+        self._by_id: dict[int, tuple[sp.Basic, str]] = {}   # subexpression object -> its slot
+        self._by_key: dict[tuple, str] = {}                 # value number: (class, argument slots) -> slot
         self._lines: list[str] = []
         self._consts: list[sp.Expr] = []
         for k, a in enumerate(args):
-            if a in self._slot:
+            if ("atom", a) in self._by_key:
                 raise DerivationError(f"reference {name}: argument {a} given twice")
-            self._slot[a] = f"x[{k}]"
+            self._by_key[("atom", a)] = f"x[{k}]"
         self.arity = len(args)
         outs = [self._emit(sp.sympify(e)) for e in exprs]
         body = "\n".join(f"    {line}" for line in self._lines)
@@ -78,34 +79,43 @@ class BallFunction:
         self.operations = len(self._lines)
 
     def _emit(self, root: sp.Expr) -> str:
-        """Statements for ``root`` (iterative post-order: deep trees are fine)."""
+        """Statements for ``root``: iterative post-order over its objects (deep
+        trees are fine), equal subexpressions merged by value numbering."""
         stack = [(root, False)]
         while stack:
             expr, ready = stack.pop()
-            if expr in self._slot:
+            if id(expr) in self._by_id:
                 continue
-            if expr.is_Number or expr.is_NumberSymbol:
-                self._slot[expr] = f"c[{len(self._consts)}]"
-                self._consts.append(expr)
-                continue
-            if expr.is_Symbol:
-                raise DerivationError(f"reference {self.name}: symbol {expr} is not an argument")
-            if not ready:
+            if not ready and expr.args:
                 stack.append((expr, True))
-                stack.extend((a, False) for a in expr.args if a not in self._slot)
+                stack.extend((a, False) for a in expr.args if id(a) not in self._by_id)
                 continue
-            self._slot[expr] = self._statement(expr)
-        return self._slot[root]
+            if expr.args:
+                slots = [self._by_id[id(a)][1] for a in expr.args]
+                key = (expr.func, tuple(slots))
+                slot = self._by_key.get(key) or self._statement(expr, slots)
+            else:
+                key = ("atom", expr)
+                slot = self._by_key.get(key)
+                if slot is None:
+                    if expr.is_Symbol:
+                        raise DerivationError(f"reference {self.name}: symbol {expr} is not an argument")
+                    if not (expr.is_Number or expr.is_NumberSymbol):
+                        raise DerivationError(f"reference {self.name}: cannot evaluate {expr}")
+                    slot = f"c[{len(self._consts)}]"
+                    self._consts.append(expr)
+            self._by_key[key] = slot
+            self._by_id[id(expr)] = (expr, slot)
+        return self._by_id[id(root)][1]
 
-    def _statement(self, expr: sp.Expr) -> str:
-        args = [self._slot[a] for a in expr.args]
+    def _statement(self, expr: sp.Expr, args: list[str]) -> str:
         if expr.is_Add:
             text = " + ".join(args)
         elif expr.is_Mul:
             text = " * ".join(args)
         elif expr.is_Pow:
             base, exp = expr.args
-            b = self._slot[base]
+            b = args[0]
             if exp.is_Integer:
                 k = int(exp)
                 text = f"{b} ** {k}" if k > 0 else (f"ONE / {b}" if k == -1 else f"ONE / {b} ** {-k}")
@@ -114,7 +124,7 @@ class BallFunction:
             elif exp == sp.Rational(-1, 2):
                 text = f"{b}.rsqrt()"
             else:
-                text = f"{b} ** {self._slot[exp]}"
+                text = f"{b} ** {args[1]}"
         elif expr.func in _UNARY:
             text = f"{args[0]}.{_UNARY[expr.func]}()"
         elif expr.func is sp.Abs:

@@ -11,6 +11,7 @@ from fractions import Fraction
 import casadi as ca
 import sympy as sp
 
+from derive.dynamics.dag import Memo
 from derive.errors import DerivationError
 from derive.codegen.kernels import KernelSpec
 
@@ -24,15 +25,27 @@ def _number(x: sp.Number) -> float:
     return float(x)
 
 
-def to_sx(expr: sp.Expr, env: dict, memo: dict, constants: dict | None = None) -> ca.SX:
-    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars.
+def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -> ca.SX:
+    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars;
+    ``memo`` (shared by the kernel's expressions) gives equal subexpressions
+    one SX node, by value numbering (never comparing two SymPy trees).
     With ``constants`` (a dict), every number but 0 and +-1 becomes an SX
     symbol, one per value, recorded there (number -> symbol): CasADi then
     folds no constants, and the graph shows every operation the printed code
     inherits (derive.codegen.accuracy analyses that graph)."""
-    hit = memo.get(expr)
+    hit = memo.get(id(expr))
     if hit is not None:
-        return hit
+        return hit[1]
+    key = None
+    if expr.args:
+        for a in expr.args:  # compound arguments first: their numbers make this node's key
+            if a.args:
+                to_sx(a, env, memo, constants)
+        key = (expr.func, tuple(memo.number(a) if a.args else a for a in expr.args))
+        number = memo.numbered(key)
+        if number is not None:  # an equal subexpression is converted already
+            memo.put(expr, memo.objects[number], number)
+            return memo.objects[number]
     if expr.is_Symbol:
         try:
             out = env[expr]
@@ -69,7 +82,7 @@ def to_sx(expr: sp.Expr, env: dict, memo: dict, constants: dict | None = None) -
         out = _FUNCTIONS[expr.func](to_sx(expr.args[0], env, memo, constants))
     else:
         raise DerivationError(f"cannot translate {expr.func.__name__} to CasADi")
-    memo[expr] = out
+    memo.put(expr, out, memo.register(key, out) if key is not None else None)
     return out
 
 
@@ -79,7 +92,7 @@ def to_function(spec: KernelSpec, constants: dict | None = None) -> ca.Function:
     port ``constants``, in the dict's order."""
     inputs = [ca.SX.sym(port.name, port.size) for port in spec.inputs]
     env = {sym: inputs[k][i] for k, port in enumerate(spec.inputs) for i, sym in enumerate(port.items)}
-    memo: dict = {}
+    memo = Memo()
     for solve in spec.solves:
         A = ca.SX(solve.A.rows, solve.A.cols)
         for i in range(solve.A.rows):

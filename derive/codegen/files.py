@@ -11,16 +11,16 @@ from importlib import metadata
 from derive.codegen.kernels import ParamsMode
 from derive.control.pipeline import Derivation
 from derive.codegen.render import render
-from derive.codegen.views import arm_view, selftest_view
+from derive.codegen.views import ArmView, arm_view, kernel_functions, selftest_view
 
 REALS = ("double", "float")
 PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # exact versions in pyproject.toml: output depends on them
 
 
-def library_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:
+def library_files(d: Derivation, real: str, mode: ParamsMode, v: ArmView | None = None) -> dict[str, str]:
     """The C library alone (API, glue, kernels), under ``c/``: what an embedding
-    such as an FMU compiles."""
-    v = arm_view(d, real, mode)
+    such as an FMU compiles (``v``: the arm's view when already built)."""
+    v = arm_view(d, real, mode) if v is None else v
     a = d.arm.name
     return {
         f"c/{a}.h": render("c/arm.h.jinja", v=v),
@@ -30,24 +30,27 @@ def library_files(d: Derivation, real: str, mode: ParamsMode) -> dict[str, str]:
     }
 
 
-def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None = None) -> dict[str, str]:
+def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None = None,
+            v: ArmView | None = None) -> dict[str, str]:
     """The C library, its self-test and CMakeLists.txt, under ``c/``; sentences
     for the user (a real type too coarse for the arm) are appended to ``notes``."""
-    v = arm_view(d, real, mode)
+    v = arm_view(d, real, mode) if v is None else v
     t = selftest_view(d, v)
     if notes is not None:
         notes.extend(t.warnings)
     a = d.arm.name
     return {
-        **library_files(d, real, mode),
+        **library_files(d, real, mode, v),
         f"c/{a}_selftest.c": render("c/selftest.c.jinja", v=v, t=t),
         "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v),
     }
 
 
-def python_files(d: Derivation, mode: ParamsMode) -> dict[str, str]:
-    """The numpy-only Python module, under ``python/`` (always double precision)."""
-    return {f"python/{d.arm.name}.py": render("python/arm.py.jinja", v=arm_view(d, "double", mode))}
+def python_files(d: Derivation, mode: ParamsMode, v: ArmView | None = None) -> dict[str, str]:
+    """The numpy-only Python module, under ``python/`` (always double precision;
+    ``v``: the arm's double view when already built)."""
+    v = arm_view(d, "double", mode) if v is None else v
+    return {f"python/{d.arm.name}.py": render("python/arm.py.jinja", v=v)}
 
 
 def observer_manifest(d: Derivation) -> dict:
@@ -69,7 +72,10 @@ def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "d
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
     load_arm took of the very bytes it validated. Warnings about the
     accuracy the real type can give are appended to ``notes``."""
-    files = {**c_files(d, real, mode, notes), **python_files(d, mode)}
+    functions = kernel_functions(d, mode)  # each kernel built once, printed for C and Python
+    v = arm_view(d, real, mode, functions)
+    py = v if real == "double" else arm_view(d, "double", mode, functions)
+    files = {**c_files(d, real, mode, notes, v), **python_files(d, mode, py)}
     files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, {"real": real, "params": mode.value})
     return files
 

@@ -31,6 +31,14 @@ SAFETY = 2.0          # first-order bound times this covers the second-order ter
 TINY = {"double": 2.0 ** -1022, "float": 2.0 ** -126}  # underflow of one operation
 
 
+def float_bound(operations: int, steps: int = 0) -> float:
+    """The coarse rule the self-test used before its tolerances were derived:
+    16 (K + steps) 2^-24 for K operations (Higham's gamma_K with a factor 16).
+    Kept for comparisons over arbitrary trajectories that run no rounding
+    analysis (the FMU tests); the self-test uses :func:`tolerance`."""
+    return 16.0 * (operations + steps) * 2.0 ** -24
+
+
 def _dyadic(rng: np.random.Generator, low: float, high: float, size: int) -> list[float]:
     return [round(v * 1024) / 1024 for v in rng.uniform(low, high, size)]
 

@@ -71,8 +71,9 @@ class ArmView:
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
 
 
-def kernel_view(spec: KernelSpec, real: str, prefix: str) -> KernelView:
-    f = to_function(spec)
+def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
+    """A kernel's C and Python text; ``f``: its CasADi Function when already built."""
+    f = to_function(spec) if f is None else f
     c = print_function(f, "c", real)
     py = print_function(f, "python")
     c_args = tuple(f"const {prefix}_real {p.name}[{p.size}]" for p in spec.inputs)
@@ -84,8 +85,14 @@ def kernel_view(spec: KernelSpec, real: str, prefix: str) -> KernelView:
                       operations=c.operations, unused=c.unused_inputs)
 
 
-def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
-    """The view of one arm for one real type and parameter mode."""
+def kernel_functions(d: Derivation, mode: ParamsMode) -> dict:
+    """name -> CasADi Function of every kernel (built once, printed for each real type and language)."""
+    return {spec.name: to_function(spec) for spec in kernel_specs(d, mode)}
+
+
+def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None = None) -> ArmView:
+    """The view of one arm for one real type and parameter mode (``functions``:
+    the kernels' CasADi Functions from :func:`kernel_functions`, when at hand)."""
     arm = d.arm
     values = [(str(s), float(v)) for s, v in d.values]
     limits = [float(m.input_limit) if m.input_limit is not None else 0.0 for m in arm.motors]
@@ -105,7 +112,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode) -> ArmView:
         params=tuple((name, c_literal(v, real), param_doc(docs[name])) for name, v in values),
         py_params=tuple((name, repr(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(repr(v) for v in limits),
-        kernels=tuple(kernel_view(k, real, arm.name) for k in kernel_specs(d, mode)),
+        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in kernel_specs(d, mode)),
         k1=repr(float(d.K1[0, 0])), k2=repr(float(d.K2[0, 0])),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)))
 

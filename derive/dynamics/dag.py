@@ -21,14 +21,17 @@ import sympy as sp
 
 class Memo(dict):
     """Results per subexpression object, keyed by ``id`` (the object is kept
-    alive beside its result). Looking a subexpression up by equality would
+    alive beside its result): looking a subexpression up by equality would
     compare two equal but distinct trees node by node, a tree walk again.
-    ``canon`` keeps one object per equal result (hash-consing): results built
-    from canonical arguments compare in one step, argument by identity."""
+    Results are also numbered by value (``numbers``: the node's class and its
+    arguments' numbers -> number; ``objects``: number -> result), so equal
+    subexpressions that are distinct objects are built once and share one
+    result, without SymPy ever comparing two trees."""
 
     def __init__(self):
         super().__init__()
-        self.canon: dict = {}
+        self.numbers: dict = {}
+        self.objects: list = []
 
     def has(self, e: sp.Basic) -> bool:
         return id(e) in self
@@ -36,8 +39,20 @@ class Memo(dict):
     def get_(self, e: sp.Basic):
         return self[id(e)][1]
 
-    def put(self, e: sp.Basic, value) -> None:
-        self[id(e)] = (e, value)
+    def number(self, e: sp.Basic) -> int:
+        return self[id(e)][2]
+
+    def put(self, e: sp.Basic, value, number: int | None = None) -> None:
+        self[id(e)] = (e, value, number)
+
+    def numbered(self, key) -> int | None:
+        return self.numbers.get(key)
+
+    def register(self, key, value) -> int:
+        number = self.numbers.setdefault(key, len(self.objects))
+        if number == len(self.objects):
+            self.objects.append(value)
+        return number
 
 
 def _postorder(roots: Iterable[sp.Basic], done: Memo, skip=None):
@@ -59,18 +74,24 @@ def _postorder(roots: Iterable[sp.Basic], done: Memo, skip=None):
 
 
 def xreplace(expr: sp.Basic, rule: Mapping, memo: Memo | None = None) -> sp.Basic:
-    """``expr.xreplace(rule)`` visiting each distinct subexpression once;
+    """``expr.xreplace(rule)`` building each distinct subexpression once;
     ``memo`` (old -> new) may be shared between calls with the same rule."""
     memo = Memo() if memo is None else memo
     for e in _postorder([expr], memo, skip=lambda e: e in rule):
         if e in rule:
-            out = rule[e]
+            out, key = rule[e], ("rule", e)
         elif not e.args:
-            out = e
+            out, key = e, ("atom", e)
         else:
+            key = (e.func, tuple(memo.number(a) for a in e.args))
+            number = memo.numbered(key)
+            if number is not None:  # an equal subexpression was built already
+                memo.put(e, memo.objects[number], number)
+                continue
             args = [memo.get_(a) for a in e.args]
             out = e if all(a is b for a, b in zip(args, e.args)) else e.func(*args)
-        memo.put(e, memo.canon.setdefault(out, out))
+        number = memo.register(key, out)
+        memo.put(e, memo.objects[number], number)
     return memo.get_(expr)
 
 
@@ -146,3 +167,4 @@ class Substitution:
             out = sp.Matrix(obj.rows, obj.cols, [xreplace(v, self.rule, self.memo) for v in obj])
             return out.as_immutable() if isinstance(obj, sp.ImmutableMatrix) else out
         return xreplace(sp.sympify(obj), self.rule, self.memo)
+

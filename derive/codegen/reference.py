@@ -99,7 +99,7 @@ class Reference:
             out = self._observer(*theta, *dtheta, *z, *u)
             J = arb_mat(n, n, out[: n * n])
             y = J.solve(arb_mat(n, 1, out[n * n:]))
-            return [sum((ball(self._W[i, j]) * y[j, 0] for j in range(i + 1)), arb(0)) for i in range(n)]
+            return [sum((ball(self._W[i, j]) * y[j, 0] for j in range(n)), arb(0)) for i in range(n)]
 
     def dhat(self, x, z) -> list[arb]:
         """The estimate dhat = B^-1 (z + W theta') (eq. 22) at input x, state z."""

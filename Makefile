@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: generate test bench venv clean system-deps embedded
+.PHONY: generate test fuzz bench venv clean system-deps embedded
 
 venv: $(STAMP)
 
@@ -30,6 +30,19 @@ embedded: $(STAMP) system-deps
 
 test: $(STAMP) system-deps
 	$(PY) -m pytest -q
+
+# The property tests (hypothesis) with FUZZ_FACTOR times the examples of `make test` and
+# a new random seed each run (printed; `make fuzz SEED=n` repeats a run). `make test`
+# runs the same tests derandomized (tests/hypothesis_profiles.py).
+FUZZ_FACTOR ?= 20
+ifndef SEED
+SEED := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+endif
+FUZZ_TESTS ?= tests/test_spec_properties.py tests/test_hardening.py
+fuzz: $(STAMP) system-deps
+	@echo "make fuzz: hypothesis seed $(SEED) (repeat with: make fuzz SEED=$(SEED))"
+	DERIVE_HYPOTHESIS_PROFILE=fuzz DERIVE_FUZZ_FACTOR=$(FUZZ_FACTOR) \
+	    $(PY) -m pytest -q -p no:cacheprovider --hypothesis-seed=$(SEED) $(FUZZ_TESTS)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks

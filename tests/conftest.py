@@ -7,6 +7,7 @@ import pytest
 
 import derive
 from derive.model.spec import packaged_arms
+from tests import hypothesis_profiles  # noqa: F401 - loads the ci or fuzz profile before any test module
 
 
 @functools.lru_cache(maxsize=None)

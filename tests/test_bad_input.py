@@ -507,3 +507,62 @@ def test_a_bare_name_reads_the_toml_file_of_that_name(tmp_path: Path, monkeypatc
         derive.load_arm("my4")
     with pytest.raises(SpecError, match=r"got no such file$"):
         derive.load_arm("my4.toml")
+
+
+def _every_key(data, field: str = ""):
+    """(container, key, field name) of every key of an arm mapping, tables and rows included."""
+    for key, value in (data.items() if isinstance(data, dict) else []):
+        name = f"{field}.{key}" if field else key
+        yield data, key, name
+        if isinstance(value, dict):
+            yield from _every_key(value, name)
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            for i, row in enumerate(value, 1):
+                yield from _every_key(row, f"{name}[{i}]")
+
+
+def _full_default_arm() -> dict:
+    """The default arm with every optional key written out (C, simulation, ...)."""
+    import tomllib
+
+    data = tomllib.loads(DEFAULT_TEXT)
+    data["controller"]["max_joint_speed"] = [20.0, 20.0]
+    data["motor"][0]["voltage_limit"] = 12.0
+    data["simulation"] = {"duration": 1.0, "seed": 3, "start": [0.0, 1.0]}
+    return data
+
+
+def test_none_is_never_a_value_of_any_key():
+    """arm_from_dict mirrors TOML, which has no null: a key set to None (required or
+    optional, e.g. controller.C, which defaults to the identity only when left out)
+    is a SpecError naming that key, never its default."""
+    import copy
+
+    data = _full_default_arm()
+    arm_from_dict(data)  # the full mapping is valid
+    fields = [name for _, _, name in _every_key(data)]
+    assert "controller.C" in fields and "simulation.seed" in fields and len(fields) > 40
+    for field in fields:
+        spoilt = copy.deepcopy(data)
+        container, key, _ = next(c for c in _every_key(spoilt) if c[2] == field)
+        container[key] = None
+        with pytest.raises(SpecError, match="expected") as info:
+            arm_from_dict(spoilt)
+        assert field in [p.field for p in info.value.problems], (field, str(info.value))
+
+
+def test_leaving_C_out_is_the_identity():
+    data = _full_default_arm()
+    del data["controller"]["C"]
+    assert arm_from_dict(data).controller.C == ((1, 0), (0, 1))
+
+
+def test_none_inside_arrays_and_dh_tables_names_its_place():
+    data = _full_default_arm()
+    data["controller"]["w"][1] = None
+    data["controller"]["C"][0][1] = None
+    with pytest.raises(SpecError, match=r"controller\.w\[2\]: expected a value \(TOML has no null") as info:
+        arm_from_dict(data)
+    assert [p.field for p in info.value.problems] == ["controller.C[1][2]", "controller.w[2]"]
+    with pytest.raises(SpecError, match=r"dh\.convention: expected a value .* got nothing: None"):
+        arm_from_dict({"arm": {"name": "dh_arm"}, "dh": {"convention": None, "table": [[0, 0, 0, 0]]}})

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import derive
@@ -25,6 +25,7 @@ from derive.codegen.reference import Reference
 from derive.model.spec import arm_from_dict
 
 from .cbuild import STRICT, compile_c, library_sources
+from .hypothesis_profiles import examples
 
 ROOT = Path(__file__).resolve().parent.parent
 FUZZ = ROOT / "tests" / "fuzz" / "fuzz_driver.c"
@@ -120,7 +121,7 @@ def _valid_arm(n: int, draw) -> dict:
             "controller": {"T1": pos(0.0, 0.05), "T2": t2, "w": w}}
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(8))
 @given(st.data())
 def test_random_valid_arms_derive_generate_and_match_the_symbolic_model(tmp_path_factory, data):
     n = data.draw(st.integers(1, 3))

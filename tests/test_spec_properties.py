@@ -11,24 +11,22 @@ from __future__ import annotations
 
 import copy
 import math
-import tempfile
-from pathlib import Path
 
 import numpy as np
 import sympy as sp
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
-from hypothesis.configuration import set_hypothesis_home_dir
 
 import derive
 from derive.errors import SpecError
 from derive.model.names import MAX_LENGTH, name_problem
 from derive.model.spec import arm_from_dict
 
-# No .hypothesis folder in the working directory: no example database, caches in the temp dir.
-set_hypothesis_home_dir(Path(tempfile.gettempdir()) / "derive-hypothesis")
-FAST = settings(max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
-SLOW = settings(max_examples=25, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
+from .hypothesis_profiles import PROFILE, examples
+
+# The profile (tests/hypothesis_profiles.py: ci derandomized, fuzz random) gives the rest.
+FAST = settings(max_examples=examples(60))
+SLOW = settings(max_examples=examples(25))
 
 
 def between(lo: float, hi: float) -> st.SearchStrategy[float]:
@@ -205,3 +203,12 @@ def test_accepted_names_are_lowercase_c_identifiers(text):
         assert text.isascii() and text.isidentifier() and text == text.lower() and len(text) <= MAX_LENGTH
     else:
         assert why.endswith(repr(text)) or "characters)" in why
+
+
+def test_the_default_profile_draws_the_same_examples_on_every_run():
+    """make test and CI: derandomized, no example database (issue 10, item 1);
+    make fuzz: a new seed each run, many more examples."""
+    current = settings.default
+    assert current.database is None and current.deadline is None
+    assert current.derandomize == (PROFILE == "ci")
+    assert FAST.max_examples == (60 if PROFILE == "ci" else 60 * examples(1)) and examples(1) >= 1

@@ -46,7 +46,9 @@ import sympy as sp
 from derive.errors import Problem, SpecError
 from derive.model.actuators import Motor, actuation_value, actuator, read_motors, terms
 from derive.model.chain import Actuation, Actuator, Chain, Parameter
-from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show, text_problem
+from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show,
+                                 text_problem)
+from derive.model.fields import path as field_path
 from derive.model.names import name_check
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
@@ -311,12 +313,32 @@ def _kind(r: Reader, top: dict, arm: Any) -> str | None:
     return kind
 
 
+NO_NULL = "a value (TOML has no null: leave the key out for its default)"
+
+
+def _nones(value: Any, field: str = "") -> list[str]:
+    """The fields of every None inside a parsed mapping (``controller.C``, ``link[2].mass``,
+    ``controller.w[2]``), at any depth."""
+    items = (value.items() if isinstance(value, dict) else
+             ((i, v) for i, v in enumerate(value, 1)) if isinstance(value, list) else ())
+    found = []
+    for key, v in items:
+        name = f"{field}[{key}]" if isinstance(value, list) else field_path(field, key)
+        found += [name] if v is None else _nones(v, name)
+    return found
+
+
 def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None) -> Arm:
-    """Validate a parsed arm mapping; raise SpecError with every problem.
+    """Validate a parsed arm mapping (what ``tomllib`` gives for an arm file); raise
+    SpecError with every problem.
 
     ``base_dir``: where a ``urdf`` path is relative to (default: the folder of
-    ``source`` when it is a path, else the working directory).
+    ``source`` when it is a path, else the working directory). None is not a value:
+    TOML has no null and the mapping mirrors the file, so a key set to None, at any
+    depth, is a problem naming that key (never its default: leave the key out for that).
     """
+    if nones := _nones(data):
+        raise SpecError(printable(source), [Problem(f, NO_NULL, "nothing: None") for f in nones])
     r = Reader()
     if isinstance(data, dict):
         top = r.table(data, "", TOP_KEYS, "")

@@ -20,9 +20,13 @@ _FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, s
 
 
 def _number(x: sp.Number) -> float:
-    if isinstance(x, sp.Rational):
-        return float(Fraction(int(x.p), int(x.q)))  # correctly rounded
-    return float(x)
+    """The nearest double of an exact number (DerivationError beyond double's range)."""
+    try:
+        if isinstance(x, sp.Rational):
+            return float(Fraction(int(x.p), int(x.q)))  # correctly rounded
+        return float(x)
+    except OverflowError:
+        raise DerivationError(f"the constant {x} overflows double") from None
 
 
 def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -> ca.SX:

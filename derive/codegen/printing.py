@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from derive.control.ranges import range_problem
 from derive.errors import DerivationError
 
 # op -> (C template, Python template); {0}, {1}: operand registers, {f}: libm suffix
@@ -61,12 +62,27 @@ class Printed:
 
 def c_literal(value: float, real: str) -> str:
     """A C literal of the real type: double with 17 significant digits, float
-    rounded to single precision with an ``f`` suffix."""
+    rounded to single precision with an ``f`` suffix.
+
+    Every constant of the generated C passes here: one that is not a normal number
+    of ``real`` (inf, nan, beyond its range, subnormal, underflowing to 0) raises
+    DerivationError. (``derive.control.ranges`` has refused such arms already,
+    naming their fields; this guards every other way a constant could arrive.)"""
+    if (why := range_problem(value, real)) is not None:
+        raise DerivationError(f"the constant {value!r} {why}: it cannot be written into {real} code")
     if real == "float":
         text = str(np.float32(value))  # shortest text that rounds back to this float
         return (text if ("." in text or "e" in text) else text + ".0") + "f"
     text = repr(float(value))
-    return text if ("." in text or "e" in text or "inf" in text or "nan" in text) else text + ".0"
+    return text if ("." in text or "e" in text) else text + ".0"
+
+
+def py_literal(value: float) -> str:
+    """A Python float literal (double, repr round-trips); raises DerivationError like
+    :func:`c_literal` for a value that is not a normal double."""
+    if (why := range_problem(value, "double")) is not None:
+        raise DerivationError(f"the constant {value!r} {why}: it cannot be written into Python code")
+    return repr(float(value))
 
 
 def print_function(f: ca.Function, language: str, real: str = "double",
@@ -91,7 +107,7 @@ def print_function(f: ca.Function, language: str, real: str = "double",
             lines.append(f"{outs[res[0]]}[{res[1]}] = a{args[0]}")
         elif op == ca.OP_CONST:
             value = f.instruction_constant(k)
-            lit = c_literal(value, real) if language == "c" else repr(float(value))
+            lit = c_literal(value, real) if language == "c" else py_literal(value)
             lines.append(f"a{res[0]} = {lit}")
         else:
             try:

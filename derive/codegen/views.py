@@ -14,8 +14,9 @@ import numpy as np
 from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
+from derive.control.ranges import check_ranges
 from derive.model.spec import observer_parameters
-from derive.codegen.printing import c_literal, print_function
+from derive.codegen.printing import c_literal, print_function, py_literal
 
 def comment_text(text: str) -> str:
     """``text`` safe inside a C block comment and a Python docstring alike:
@@ -92,7 +93,11 @@ def kernel_functions(d: Derivation, mode: ParamsMode) -> dict:
 
 def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None = None) -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
-    the kernels' CasADi Functions from :func:`kernel_functions`, when at hand)."""
+    the kernels' CasADi Functions from :func:`kernel_functions`, when at hand).
+
+    Raises SpecError naming the arm-file fields when a derived constant is not a normal
+    ``real`` (derive.control.ranges; e.g. k1 = 3e40 of T2 = 1e-20 in float)."""
+    check_ranges(d, real)
     arm = d.arm
     values = [(str(s), float(v)) for s, v in d.values]
     limits = [float(m.input_limit) if m.input_limit is not None else 0.0 for m in arm.motors]
@@ -110,10 +115,10 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         source_name=comment_text(arm.source.replace("\\", "/").rsplit("/", 1)[-1]), n=d.n, real=real,
         runtime=mode is ParamsMode.RUNTIME,
         params=tuple((name, c_literal(v, real), param_doc(docs[name])) for name, v in values),
-        py_params=tuple((name, repr(v), param_doc(docs[name])) for name, v in values), baked=baked,
-        u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(repr(v) for v in limits),
+        py_params=tuple((name, py_literal(v), param_doc(docs[name])) for name, v in values), baked=baked,
+        u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
         kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in kernel_specs(d, mode)),
-        k1=repr(float(d.K1[0, 0])), k2=repr(float(d.K2[0, 0])),
+        k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)))
 
 

@@ -16,6 +16,7 @@ from derive.dynamics.planar import Dynamics, derive_dynamics, lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
+from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
 from derive.model.spec import Arm
 
@@ -104,7 +105,10 @@ class Derivation:
 
 
 def derive(arm: Arm) -> Derivation:
-    """Derive the dynamics, predictive law, observer and PID form of ``arm``."""
+    """Derive the dynamics, predictive law, observer and PID form of ``arm``.
+
+    Raises SpecError, naming the arm-file fields, when a derived constant is not a
+    normal double (``derive.control.ranges``: e.g. T2 = 1e-170 makes k1 = 3e339)."""
     dyn = derive_dynamics(arm)
     ctl = arm.controller
     mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
@@ -133,10 +137,12 @@ def derive(arm: Arm) -> Derivation:
             f"controller.max_joint_speed[2] = {float(speeds[1]):g} rad/s is not below w1/X = "
             f"{float(bound):.6g} rad/s: condition (26) fails there, so theorem 2 does not "
             "guarantee that the observer converges at that speed (raise w1 or lower the speed)")
-    return Derivation(
+    d = Derivation(
         arm=arm, dynamics=dyn, mpc=mpc, observer=obs, npid=npid, values=values,
         theta=dyn.sym.theta, dtheta=dyn.sym.dtheta, J=num(dyn.J), G=num(dyn.G), B=num(dyn.B),
         C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis)
+    check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
+    return d

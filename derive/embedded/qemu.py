@@ -298,6 +298,7 @@ def run(args: argparse.Namespace) -> int:
     from derive.codegen.emit import write_tree
     from derive.codegen.kernels import ParamsMode
     from derive.control.pipeline import derive
+    from derive.control.ranges import check_ranges
     from derive.model.spec import load_arm, resolve_arm_path
 
     check_toolchain()
@@ -305,6 +306,8 @@ def run(args: argparse.Namespace) -> int:
     arm = load_arm(args.arm)
     d = derive(arm)
     report_warnings(d)
+    for real in sorted({r for t in targets for r in t.reals}):
+        check_ranges(d, real)  # every real type fits before anything is written or built
     arm_bytes = resolve_arm_path(args.arm).read_bytes()
     keep = Path(args.keep) if args.keep else None
     if keep is not None:

@@ -94,12 +94,13 @@ def check_law(d: Derivation) -> Outcome:
                  refuted="the derived u* does not give e'' + K2 e' + K1 e = 0")
     k1, k2 = d.K1[0, 0], d.K2[0, 0]
     diag = d.K1 == k1 * sp.eye(d.n) and d.K2 == k2 * sp.eye(d.n)
-    roots = sp.Poly(sp.Symbol("s") ** 2 + k2 * sp.Symbol("s") + k1).nroots()
+    # exact roots, then evaluated: nroots' iteration fails to converge for gains such as k1 = 3e40
+    roots = sp.roots(sp.Poly(sp.Symbol("s") ** 2 + k2 * sp.Symbol("s") + k1), multiple=True)
     ok = diag and k1 > 0 and k2 > 0
     hurwitz = Outcome(Status.PROVED if ok else Status.REFUTED,
                       f"k1 = {k1} > 0, k2 = {k2} > 0: s^2 + k2 s + k1 is Hurwitz (Routh)" if ok else
                       f"K1 = {list(d.K1)}, K2 = {list(d.K2)} are not positive multiples of I",
-                      evidence="roots of s^2 + k2 s + k1: " + ", ".join(f"{complex(r):.4g}" for r in roots))
+                      evidence="roots of s^2 + k2 s + k1: " + ", ".join(f"{complex(sp.N(r, 20)):.4g}" for r in roots))
     return combine([loop, hurwitz], summary="under the derived u*: e'' + K2 e' + K1 e = 0, s^2 + k2 s + k1 Hurwitz")
 
 

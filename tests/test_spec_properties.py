@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 
 import numpy as np
 import sympy as sp
@@ -20,6 +21,10 @@ from hypothesis import strategies as st
 import derive
 from derive.errors import SpecError
 from derive.model.names import MAX_LENGTH, name_problem
+from derive.codegen.kernels import ParamsMode
+from derive.codegen.render import render
+from derive.codegen.views import arm_view
+from derive.control.ranges import check_ranges
 from derive.model.spec import arm_from_dict
 
 from .hypothesis_profiles import PROFILE, examples
@@ -30,7 +35,9 @@ SLOW = settings(max_examples=examples(25))
 
 
 def between(lo: float, hi: float) -> st.SearchStrategy[float]:
-    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+    """Finite floats in [lo, hi], tiny magnitudes (< 1e-100) made 0: a product of such a draw
+    and a length could be subnormal, which derive refuses, naming the field (test_ranges.py)."""
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False).map(lambda x: 0.0 if abs(x) < 1e-100 else x)
 
 
 @st.composite
@@ -177,6 +184,57 @@ def test_one_bad_field_is_a_spec_error_naming_it(case):
             assert any(f == field or f.startswith(field + "[") for f in fields), (field, str(exc))
     else:
         raise AssertionError(f"accepted a bad arm: {data}")
+
+
+@st.composite
+def extreme_arms(draw) -> dict:
+    """A valid arm mapping whose values span the whole double range (1e-300 .. 1e300)."""
+    data = draw(valid_arms(n=st.integers(1, 2)))
+    scale = lambda: 10.0 ** draw(st.integers(-300, 300))  # noqa: E731
+    key = draw(st.sampled_from(["length", "mass", "inertia", "T2", "w", "torque_constant", "rotor_inertia"]))
+    factor = scale()
+    for link in data["link"]:
+        if key in ("length", "mass") or (key == "inertia" and link["inertia"] != "uniform_rod"):
+            link[key] = link[key] * factor
+            link.pop("com", None)  # com scales with the length by default
+    for motor in data["motor"]:
+        if key in ("torque_constant", "rotor_inertia"):
+            motor[key] = motor.get(key, 1e-5) * factor
+    for pm in data["point_mass"]:
+        pm["distance"] = min(pm["distance"], min(link["length"] for link in data["link"]))
+    ctl = data["controller"]
+    if key == "T2":
+        ctl["T1"], ctl["T2"] = 0.0, factor
+    if key == "w":
+        ctl["w"] = [w * factor for w in ctl["w"]]
+    return data
+
+
+@settings(max_examples=examples(15))
+@given(extreme_arms())
+def test_extreme_values_give_normal_kernel_constants_or_a_spec_error_naming_fields(data):
+    """Issue 10, item 2: a derived constant beyond a real type's range never reaches the
+    kernels; every arm either prints them (every literal finite) or is refused naming fields.
+    (The self-test vectors, computed from the model at sampled states, are not drawn here.)"""
+    try:
+        arm = arm_from_dict(data)
+    except SpecError:
+        return  # e.g. a product of the scale with a drawn value that is not a finite double
+    try:
+        d = derive.derive(arm)
+    except SpecError as exc:
+        assert all(p.field.split("[")[0].split(".")[0] in ("link", "point_mass", "motor", "controller", "arm")
+                   for p in exc.problems), str(exc)
+        return
+    for real in ("double", "float"):
+        try:
+            check_ranges(d, real)
+        except SpecError as exc:
+            assert real == "float" and "float" in str(exc), str(exc)
+            continue
+        view = arm_view(d, real, ParamsMode.BAKED)  # the printer raises on any constant out of range
+        kernels = render("c/kernels.c.jinja", v=view)
+        assert not re.search(r"\b(inf|nan|INFINITY|NAN)\b", kernels)
 
 
 JSONISH = st.recursive(

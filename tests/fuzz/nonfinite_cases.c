@@ -1,0 +1,145 @@
+/* The documented error contract of a generated controller, case by case (hand-written
+ * test code, not generated): a non-finite input, state or dt gives the error code and
+ * leaves the state and u untouched; a result that overflows from finite inputs too.
+ *
+ * Built WITHOUT finite-math flags and linked against a library built WITH them
+ * (-ffast-math, -Ofast, -ffinite-math-only, -fno-honor-nans, ...): the library's checks
+ * must survive those flags (issue 10, item 3). Compile with -DARM=<arm>
+ * -DARM_UPPER=<ARM> -DARM_H='"<arm>.h"' [-DRUNTIME]. Prints one line per failed case
+ * and "N cases, N failed"; exits non-zero on any failure. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include ARM_H
+
+#define CAT2(a, b) a##b
+#define CAT(a, b) CAT2(a, b)
+#define T(name) CAT(ARM, CAT(_, name))
+#define C(name) CAT(ARM_UPPER, CAT(_, name))
+#define NJ C(N)
+
+#ifdef RUNTIME
+#define P &params,
+static T(params) params;
+#else
+#define P
+#endif
+
+typedef T(real) real;
+
+static int cases, failed;
+
+static void expect(const char *what, int ok)
+{
+    ++cases;
+    if (!ok) {
+        ++failed;
+        printf("FAIL %s\n", what);
+    }
+}
+
+static T(input) ordinary(void)
+{
+    T(input) in;
+    int i;
+    for (i = 0; i < NJ; ++i) {
+        in.theta[i] = (real)(0.1 * (i + 1));
+        in.dtheta[i] = (real)(-0.2 * i);
+        in.yd[i] = (real)0.5;
+        in.dyd[i] = (real)0.0;
+        in.ddyd[i] = (real)0.0;
+    }
+    return in;
+}
+
+/* Every step (and, when code_in != -1, mpc_step and dobc_init) with `in`: code_dt from the
+ * steps, code_in from the others, state and u untouched. */
+static void all_refuse(const char *what, T(input) in, real dt, int code_in, int code_dt)
+{
+    T(npid_state) ns, ns0;
+    T(dobc_state) ds, ds0;
+    T(input) good = ordinary();
+    real u[NJ], u0[NJ];
+    char label[160];
+    int i;
+    for (i = 0; i < NJ; ++i) u[i] = u0[i] = (real)12345.0;
+    T(npid_init)(P &ns, &good);
+    T(dobc_init)(P &ds, &good);
+    ns0 = ns;
+    ds0 = ds;
+    snprintf(label, sizeof label, "npid_step, %s", what);
+    expect(label, T(npid_step)(P &ns, &in, dt, u) == code_dt && !memcmp(&ns, &ns0, sizeof ns)
+                  && !memcmp(u, u0, sizeof u));
+    snprintf(label, sizeof label, "dobc_step, %s", what);
+    expect(label, T(dobc_step)(P &ds, &in, dt, u) == code_dt && !memcmp(&ds, &ds0, sizeof ds)
+                  && !memcmp(u, u0, sizeof u));
+    if (code_in != -1) {
+        snprintf(label, sizeof label, "mpc_step, %s", what);
+        expect(label, T(mpc_step)(P &in, u) == code_in && !memcmp(u, u0, sizeof u));
+    }
+    if (code_in != -1 && strstr(what, "overflows") == NULL) { /* z(0) is linear in theta', no overflow */
+        snprintf(label, sizeof label, "dobc_init, %s", what);
+        expect(label, T(dobc_init)(P &ds, &in) == code_in && !memcmp(&ds, &ds0, sizeof ds));
+        snprintf(label, sizeof label, "npid_init, %s", what);
+        expect(label, T(npid_init)(P &ns, &in) == code_in && !memcmp(&ns, &ns0, sizeof ns));
+    }
+}
+
+int main(void)
+{
+    volatile real zero = 0;
+    const real nan_ = zero / zero, inf = (real)1 / zero;
+    /* |dtheta| = huge: G holds dtheta^2 terms, which overflow the real type */
+    const real huge = sizeof(real) == sizeof(double) ? (real)1e200 : (real)1e30;
+    const real dt = (real)1e-3;
+    const real bad_dt[] = { nan_, inf, -inf, 0, -dt };
+    const char *bad_dt_name[] = { "dt = NaN", "dt = Inf", "dt = -Inf", "dt = 0", "dt < 0" };
+    T(input) in;
+    T(npid_state) ns, ns0;
+    T(dobc_state) ds, ds0;
+    real u[NJ], u0[NJ];
+    int i, k;
+#ifdef RUNTIME
+    T(params_default)(&params);
+#endif
+    for (i = 0; i < NJ; ++i) u[i] = u0[i] = (real)12345.0;
+
+    in = ordinary(); in.theta[0] = nan_;
+    all_refuse("theta[0] = NaN", in, dt, C(ENONFINITE), C(ENONFINITE));
+    in = ordinary(); in.dtheta[NJ - 1] = inf;
+    all_refuse("dtheta[n-1] = Inf", in, dt, C(ENONFINITE), C(ENONFINITE));
+    in = ordinary(); in.yd[0] = -inf;
+    all_refuse("yd[0] = -Inf", in, dt, C(ENONFINITE), C(ENONFINITE));
+    in = ordinary(); in.dyd[NJ - 1] = nan_;
+    all_refuse("dyd[n-1] = NaN", in, dt, C(ENONFINITE), C(ENONFINITE));
+    in = ordinary(); in.ddyd[0] = nan_;
+    all_refuse("ddyd[0] = NaN", in, dt, C(ENONFINITE), C(ENONFINITE));
+    for (k = 0; k < 5; ++k) all_refuse(bad_dt_name[k], ordinary(), bad_dt[k], -1, C(EDT));
+    /* finite inputs whose results overflow */
+    in = ordinary(); in.dtheta[0] = huge;
+    all_refuse("dtheta[0] = huge (the result overflows)", in, dt, C(ENONFINITE), C(ENONFINITE));
+
+    /* a non-finite state */
+    in = ordinary();
+    T(npid_init)(P &ns, &in);
+    ns.int_e[0] = nan_;
+    ns0 = ns;
+    expect("npid_step, int_e[0] = NaN", T(npid_step)(P &ns, &in, dt, u) == C(ENONFINITE)
+           && !memcmp(&ns, &ns0, sizeof ns) && !memcmp(u, u0, sizeof u));
+    T(dobc_init)(P &ds, &in);
+    ds.z[NJ - 1] = -inf;
+    ds0 = ds;
+    expect("dobc_step, z[n-1] = -Inf", T(dobc_step)(P &ds, &in, dt, u) == C(ENONFINITE)
+           && !memcmp(&ds, &ds0, sizeof ds) && !memcmp(u, u0, sizeof u));
+
+    /* and the ordinary case still succeeds with finite results */
+    T(npid_init)(P &ns, &in);
+    T(dobc_init)(P &ds, &in);
+    expect("npid_step, ordinary input", T(npid_step)(P &ns, &in, dt, u) == C(OK) && isfinite(u[0]));
+    expect("dobc_step, ordinary input", T(dobc_step)(P &ds, &in, dt, u) == C(OK) && isfinite(u[0]));
+    expect("mpc_step, ordinary input", T(mpc_step)(P &in, u) == C(OK) && isfinite(u[0]));
+
+    printf("%d cases, %d failed\n", cases, failed);
+    return failed != 0;
+}

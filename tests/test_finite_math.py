@@ -1,0 +1,118 @@
+"""The error contract of the generated C under flags that assume finite math (issue 10, item 3).
+
+``-ffast-math`` (and ``-Ofast``, ``-ffinite-math-only``, clang's ``-fno-honor-nans`` and
+``-fno-honor-infinities``) let the compiler assume no value is NaN or Inf, so it may fold
+``isfinite(x)`` to 1: built so, ``npid_step`` returned OK for a NaN angle with u = NaN and a
+corrupted integrator. The generated glue tests the IEEE exponent bits read through memcpy
+instead, which no such flag may remove. Here the library is built with each flag set
+(gcc and clang, double and float) and linked against tests/fuzz/nonfinite_cases.c, built
+without them: every case (NaN or Inf in each input, NaN/Inf/0/negative dt, a non-finite
+state, a result that overflows from finite inputs) must give the documented code and leave
+state and u untouched; -Ofast is also run under the random fuzz driver.
+"""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+import derive
+from derive.codegen.emit import write_tree
+from derive.codegen.files import generate_files
+from derive.codegen.kernels import ParamsMode
+
+from .cbuild import STRICT
+
+ROOT = Path(__file__).resolve().parent.parent
+CASES = ROOT / "tests" / "fuzz" / "nonfinite_cases.c"
+FUZZ = ROOT / "tests" / "fuzz" / "fuzz_driver.c"
+ARM = "glasgow_2link"
+
+# every flag set of gcc and clang that assumes finite math, with LTO (the checks must not
+# vanish when the glue, the kernels and the caller are optimised together)
+FINITE_MATH = [
+    ("gcc", "-O2 -ffast-math"), ("gcc", "-Ofast"), ("gcc", "-O2 -ffinite-math-only"),
+    ("gcc", "-O3 -ffast-math -flto"),
+    ("clang", "-O2 -ffast-math"), ("clang", "-Ofast"), ("clang", "-O2 -ffinite-math-only"),
+    ("clang", "-O2 -fno-honor-nans"), ("clang", "-O2 -fno-honor-infinities"),
+    ("clang", "-O3 -ffast-math -flto"),
+]
+
+
+@pytest.fixture(scope="module")
+def trees(tmp_path_factory) -> dict[tuple[str, str], Path]:
+    d = derive.derive(derive.load_arm(ARM))
+    root = tmp_path_factory.mktemp("finite_math")
+    out = {}
+    for real, mode in (("double", "baked"), ("float", "baked"), ("double", "runtime")):
+        write_tree(root / f"{real}_{mode}", generate_files(d, b"", real, ParamsMode(mode)))
+        out[real, mode] = root / f"{real}_{mode}" / "c"
+    return out
+
+
+def build(cc: str, flags: str, c_dir: Path, driver: Path, out: Path, runtime: bool = False) -> Path:
+    """The library built with ``flags``, the driver without finite-math flags (same -flto)."""
+    lib_flags = flags.split()
+    lto = ["-flto"] if "-flto" in lib_flags else []
+    defines = [f"-DARM={ARM}", f"-DARM_UPPER={ARM.upper()}", f'-DARM_H="{ARM}.h"', f"-I{c_dir}"]
+    defines += ["-DRUNTIME"] if runtime else []
+    objects = []
+    for src, own in ((driver, ["-O2", *lto, *defines]), (c_dir / f"{ARM}.c", [*lib_flags, f"-I{c_dir}"]),
+                     (c_dir / f"{ARM}_kernels.c", [*lib_flags, f"-I{c_dir}"])):
+        obj = out.parent / f"{out.name}_{src.stem}.o"
+        cmd = [cc, *STRICT, *own, "-c", str(src), "-o", str(obj)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, f"{' '.join(cmd)}\n{proc.stderr}"
+        objects.append(str(obj))
+    proc = subprocess.run([cc, *lib_flags, *objects, "-lm", "-o", str(out)], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def run(exe: Path, *args: str) -> str:
+    proc = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return proc.stdout
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+@pytest.mark.parametrize("cc,flags", FINITE_MATH, ids=[f"{c} {f}" for c, f in FINITE_MATH])
+def test_error_codes_hold_under_finite_math_flags(trees, tmp_path, cc, flags, real):
+    exe = build(cc, flags, trees[real, "baked"], CASES, tmp_path / "cases")
+    assert run(exe).strip().splitlines()[-1] == "43 cases, 0 failed"
+
+
+def test_error_codes_hold_under_finite_math_flags_with_runtime_parameters(trees, tmp_path):
+    for cc in ("gcc", "clang"):
+        exe = build(cc, "-Ofast", trees["double", "runtime"], CASES, tmp_path / f"cases_{cc}", runtime=True)
+        assert run(exe).strip().splitlines()[-1] == "43 cases, 0 failed"
+
+
+def test_the_cases_fail_where_isfinite_is_folded_away(trees, tmp_path):
+    """The driver does see the fault: with isfinite() in the glue (as before), -ffast-math
+    lets npid_step accept a NaN angle."""
+    c_dir = tmp_path / "isfinite"
+    c_dir.mkdir()
+    for f in trees["double", "baked"].iterdir():
+        (c_dir / f.name).write_text(f.read_text())
+    glue = c_dir / f"{ARM}.c"
+    text = glue.read_text()
+    text = re.sub(r"static int finite_all\(const real \*x, size_t count\)\n\{.*?\n\}\n",
+                  "static int finite_all(const real *x, size_t count)\n{\n    size_t i;\n"
+                  "    for (i = 0; i < count; ++i) if (!isfinite(x[i])) return 0;\n    return 1;\n}\n",
+                  text, flags=re.S)
+    glue.write_text("#include <math.h>\n" + text)
+    exe = build("gcc", "-O2 -ffast-math", c_dir, CASES, tmp_path / "cases")
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0 and "FAIL npid_step, theta[0] = NaN" in proc.stdout, proc.stdout
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+def test_fuzz_driver_contract_holds_under_ofast(trees, tmp_path, cc):
+    exe = build(cc, "-Ofast", trees["float", "baked"], FUZZ, tmp_path / "fuzz")
+    out = run(exe, "20000")
+    assert re.search(r"^20000 passed, 0 failed$", out, re.M), out
+    assert int(re.search(r"(\d+) error codes returned", out).group(1)) > 2000

@@ -74,28 +74,10 @@ def shown(x: Fraction | sp.Number) -> str:
     return f"{sign}{float(m):.4g}e{e:+d}" if abs(e) >= 5 else f"{sign}{float(q):.5g}"
 
 
-def parameter_fields(d: "Derivation") -> dict[sp.Symbol, tuple[str, ...]]:
-    """The arm-file fields each parameter symbol of ``d`` comes from.
-
-    (The chain's ``Parameter`` records will carry these; until the derivation uses them,
-    this maps the planar arm's symbols: l_i -> link[i].length, k1 -> T1 and T2, ...)
-    """
-    p, arm = d.dynamics.params, d.arm
-    out: dict[sp.Symbol, tuple[str, ...]] = {}
-    for attr, table, key in (("length", "link", "length"), ("mass", "link", "mass"), ("com", "link", "com"),
-                             ("inertia", "link", "inertia"), ("friction", "link", "viscous_friction"),
-                             ("pm_mass", "point_mass", "mass"), ("pm_distance", "point_mass", "distance"),
-                             ("pm_inertia", "point_mass", "inertia"), ("Kt", "motor", "torque_constant"),
-                             ("Kv", "motor", "voltage_constant"), ("R", "motor", "resistance"),
-                             ("gear", "motor", "gear_ratio"), ("Jm", "motor", "rotor_inertia")):
-        for i, sym in enumerate(getattr(p, attr), 1):
-            out[sym] = (f"{table}[{i}].{key}",)
-    out[p.g] = ("arm.gravity",)
-    for sym, _ in d.mpc.values:
-        out[sym] = ("controller.T1", "controller.T2")
-    for i, sym in enumerate(d.observer.w, 1):
-        out[sym] = (f"controller.w[{i}]",)
-    return out
+def parameter_fields(d: "Derivation") -> dict[sp.Symbol, str]:
+    """The arm-file field of each parameter symbol of ``d`` (``link[2].mass``,
+    ``controller.T2``, ``urdf link 'forearm' <inertial><mass>``): the arm's Parameter records."""
+    return {p.symbol: p.field for p in d.arm.parameters}
 
 
 # (name, paper, numeric attribute of Derivation, symbolic counterpart, uses C)
@@ -130,26 +112,20 @@ def _expected(real: str) -> str:
 
 def range_problems(d: "Derivation", real: str) -> list[Problem]:
     """Every derived constant of ``d`` that is not a normal ``real``, as problems naming fields."""
-    fields = parameter_fields(d)
     problems: list[Problem] = []
-    values = dict(d.values)
-    for sym, value in d.values:
-        if (why := range_problem(value, real)) is not None:
-            names = fields.get(sym, (str(sym),))
-            given = f"{sym} = {shown(value)}, which {why}"
-            if names == ("controller.T1", "controller.T2"):
-                t1, t2 = d.arm.controller.T1, d.arm.controller.T2
-                given = f"T1 = {shown(t1)}, T2 = {shown(t2)} give {given} (eq. 16-18)"
-            problems.append(Problem(" and ".join(names), _expected(real), given))
+    for p in d.arm.parameters:
+        if (why := range_problem(p.value, real)) is not None:
+            problems.append(Problem(p.field, _expected(real), f"{shown(p.value)}, which {why}"))
     for i, motor in enumerate(d.arm.motors, 1):
         limit = motor.input_limit
         if limit is not None and (why := range_problem(limit, real)) is not None:
             key = "voltage_limit" if limit is motor.voltage_limit else "torque_limit"
             problems.append(Problem(f"motor[{i}].{key}", _expected(real), f"{shown(limit)}, which {why}"))
     if problems:
-        return problems
+        return problems  # one out-of-range parameter spoils every matrix that uses it
     if all(range_problem(x, real) is None for x in _numbers(getattr(d, m[2]) for m in _MATRICES)):
         return problems
+    fields, values = parameter_fields(d), dict(d.values)
     for name, paper, attr, symbolic, uses_c in _MATRICES:
         numeric = getattr(d, attr)
         for k, entry in enumerate(numeric):
@@ -157,14 +133,19 @@ def range_problems(d: "Derivation", real: str) -> list[Problem]:
                         if (why := range_problem(x, real)) is not None), None)
             if bad is None:
                 continue
-            found = {f for s in _culprits(sp.sympify(symbolic(d)[k]), values, real) for f in fields[s]}
+            culprits = _culprits(sp.sympify(symbolic(d)[k]), values, real)
+            found = {fields.get(s, str(s)): values[s] for s in culprits}
             if uses_c and d.C != sp.eye(d.n):
-                found.add("controller.C")
+                found["controller.C"] = None
             square = name in ("J", "B", "K1", "K2", "W", "P", "D", "I")  # the others are n x 1
             where = f"[{k // numeric.cols + 1}][{k % numeric.cols + 1}]" if square else f"[{k + 1}]"
+            names = _order(set(found))
+            given = ", ".join(f if found[f] is None else f"{f} = {shown(found[f])}" for f in names)
             # the first matrix in the order of the derivation: the later ones are made of it
-            return [Problem(" and ".join(_order(found)) or "controller", _expected(real),
-                            f"{name}{where} ({paper}) holds the constant {shown(bad[0])}, which {bad[1]}")]
+            return [Problem(" and ".join(names) or "controller", _expected(real),
+                            f"{given}{' give ' if given else ''}{name}{where} ({paper}) "
+                            f"{'= ' if sp.sympify(entry).is_Number else 'holding the constant '}{shown(bad[0])}, "
+                            f"which {bad[1]}")]
     return problems
 
 

@@ -93,6 +93,10 @@ def run(args: argparse.Namespace) -> int:
     seconds = time.perf_counter() - start
     code = exit_code(results)
     sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))
+    if d is not None:
+        from derive.control.sampling import summary
+
+        sys.stdout.write(f"Sample time of {d.arm.name}: {summary(d)}\n")
     if args.report is not None:
         write_file(args.report, render_markdown(d, results, seconds, code))
     if args.json is not None:

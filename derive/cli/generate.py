@@ -29,8 +29,13 @@ def run(args) -> int:
     arm = load_arm(args.arm)
     d = derive(arm)
     report_warnings(d)
+    from derive.control.sampling import summary, too_slow
+
+    for text in too_slow(d, arm.simulation.sample_time):
+        print(f"derive: warning: simulation.sample_time of {arm.name}: {text}", file=sys.stderr)
     notes: list[str] = []
-    files = generate_files(d, None, args.real, ParamsMode(args.params), notes)  # hash of the bytes load_arm read
+    files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
+                           sample_time=summary(d))
     for note in notes:
         print(f"derive: warning: {note}", file=sys.stderr)
     target = Path(args.out) / arm.name

@@ -244,4 +244,8 @@ def run(args) -> int:
         encoding = (getattr(sys.stdout, "encoding", None) or "").lower()
         text = render_text(d, exact=args.exact, unicode=encoding.startswith("utf"))
     sys.stdout.write(text if text.endswith("\n") else text + "\n")
+    if not args.latex:
+        from derive.control.sampling import summary
+
+        sys.stdout.write(f"\nSample time: {summary(d)}\n")
     return 0

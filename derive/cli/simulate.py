@@ -23,6 +23,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None, help="folder for plots and metrics.md (default sim/<arm>)")
     parser.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
     parser.add_argument("--duration", type=float, default=None, help="override simulation.duration [s]")
+    parser.add_argument("--force", action="store_true",
+                        help="simulate even when the sample time is above a form's limit (derive check prints it)")
     parser.add_argument("--voltage-limits", default=None, metavar="V1,V2,...",
                         help="override the motors' voltage limits [V] (0 = none), for saturation studies")
 
@@ -105,6 +107,15 @@ def run(args) -> int:
     arm = load_arm(args.arm)
     if args.voltage_limits is not None:
         arm = with_voltage_limits(arm, args.voltage_limits)
+    if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
+        from derive.control.pipeline import derive
+        from derive.control.sampling import too_slow
+        from derive.sim.simulate import VARIANTS as forms
+
+        slow = too_slow(derive(arm), arm.simulation.sample_time, sorted({forms[c][0] for c in names}))
+        if slow:
+            raise DeriveError(f"simulation.sample_time of {arm.name}: " + "; ".join(slow)
+                              + ": the controller would diverge; lower sample_time, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration)
     wall = time.perf_counter() - start

@@ -66,15 +66,17 @@ def observer_manifest(d: Derivation) -> dict:
 
 
 def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "double",
-                   mode: ParamsMode = ParamsMode.BAKED, notes: list[str] | None = None) -> dict[str, str]:
+                   mode: ParamsMode = ParamsMode.BAKED, notes: list[str] | None = None,
+                   sample_time: str | None = None) -> dict[str, str]:
     """Every generated file of one arm, with a manifest (no timestamps, no paths).
 
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
     load_arm took of the very bytes it validated. Warnings about the
-    accuracy the real type can give are appended to ``notes``."""
+    accuracy the real type can give are appended to ``notes``. ``sample_time``: the
+    sentence of derive.control.sampling.summary, stated in the headers (derive generate passes it)."""
     functions = kernel_functions(d, mode)  # each kernel built once, printed for C and Python
-    v = arm_view(d, real, mode, functions)
-    py = v if real == "double" else arm_view(d, "double", mode, functions)
+    v = arm_view(d, real, mode, functions, sample_time)
+    py = v if real == "double" else arm_view(d, "double", mode, functions, sample_time)
     files = {**c_files(d, real, mode, notes, v), **python_files(d, mode, py)}
     files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, {"real": real, "params": mode.value})
     return files

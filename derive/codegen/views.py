@@ -7,6 +7,7 @@ shows (literals, tolerances, test vectors) is computed here.
 from __future__ import annotations
 
 import re
+import textwrap
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,7 @@ class ArmView:
     k1: str
     k2: str
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
+    sample_notes: tuple[str, ...] = ()          # the largest sample time of each form (derive generate)
 
 
 def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
@@ -91,9 +93,11 @@ def kernel_functions(d: Derivation, mode: ParamsMode) -> dict:
     return {spec.name: to_function(spec) for spec in kernel_specs(d, mode)}
 
 
-def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None = None) -> ArmView:
+def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None = None,
+             sample_time: str | None = None) -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
-    the kernels' CasADi Functions from :func:`kernel_functions`, when at hand).
+    the kernels' CasADi Functions from :func:`kernel_functions`, when at hand; ``sample_time``:
+    the sentence of derive.control.sampling.summary for the header, when the caller computed it).
 
     Raises SpecError naming the arm-file fields when a derived constant is not a normal
     ``real`` (derive.control.ranges; e.g. k1 = 3e40 of T2 = 1e-20 in float)."""
@@ -119,7 +123,9 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
         kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in kernel_specs(d, mode)),
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])),
-        observer_notes=tuple(comment_text(x) for x in observer_notes(d)))
+        observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
+        sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
+                                                                         88)))
 
 
 def observer_notes(d: Derivation) -> tuple[str, ...]:

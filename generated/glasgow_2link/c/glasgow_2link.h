@@ -16,6 +16,9 @@
  *   initial estimate dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)); discretised,
  *   they differ by O(dt).
  * Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
+ * Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
+ * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
+ * ms.
  * Voltage limits (0 = none): u is clipped to [-u_max, u_max]; the observer is
  * fed the clipped u and the PID integrator of a clipped joint is held.
  * A step returns GLASGOW_2LINK_ENONFINITE for a non-finite input, state or result

@@ -9,6 +9,9 @@ mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
 Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
+Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
+linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
+ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 and leaves its state and u untouched.
 

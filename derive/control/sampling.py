@@ -1,0 +1,251 @@
+"""The largest sample time of each generated controller form (MPC eq. 15, DOBC eq. 21-27, NPID eq. 34).
+
+The sampled closed loop is the plant J theta'' + G = B u (eq. 12) under a zero-order hold on u,
+and the controller exactly as generated: u_k from the law at the sample, and its state stepped
+once per sample, the NPID integral by forward Euler (int_e + dt e) and the observer state by
+forward Euler (z + dt W y, J y = G - B u - W theta' - z) or backward Euler (the same with
+(J + dt W) y = G - B u - W theta' - z: z_{k+1} = z_k + dt W J^-1 (... - z_{k+1})).
+
+Linearised at an operating point (theta0, theta0', reference y_d = C theta0, y_d' = C theta0',
+y_d'' = 0, u0 the law's output): x = (theta, theta'), c the form's state,
+
+    x_{k+1} = Phi x_k + Gamma u_k,  (Phi, Gamma) = ZOH of (df/dx, df/du) over dt,
+    u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k,
+
+and the loop is stable at that point when the spectral radius of
+[[Phi + Gamma U_x, Gamma U_c], [S_x + S_u U_x, S_c + S_u U_c]] is below 1. The limit is the
+largest dt (found by doubling, then bisection to 1 %) for which that holds at every operating
+point of a grid of configurations and speeds (every angle on a grid, the stated speed box's
+vertices and rest); the figure reported is 0.9 of it: the stated margin for the frozen-time
+linearisation over a finite grid. Jacobians are central differences of the laws evaluated in
+double precision (numbers to 1e-6 relative, far below the margin).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+FORMS = ("mpc", "dobc", "npid")
+OBSERVERS = ("explicit", "implicit")
+MARGIN = 0.9
+DT_MAX = 1.0      # s: no limit is reported beyond it
+DT_MIN = 1e-7
+
+
+@dataclass(frozen=True)
+class SampleLimit:
+    """form, observer discretisation, limit [s] (``MARGIN`` of the largest stable dt; inf when stable
+    up to DT_MAX), raw [s], points: operating points checked, worst: the (theta, theta') that failed
+    first beyond the raw limit (None when none did)."""
+
+    form: str
+    observer: str
+    limit: float
+    raw: float
+    points: int
+    worst: tuple[tuple[float, ...], tuple[float, ...]] | None
+
+
+def _jac(f, x0: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central-difference Jacobian of a vector function at x0."""
+    y0 = np.asarray(f(x0), dtype=float)
+    out = np.zeros((y0.size, x0.size))
+    for i in range(x0.size):
+        e = np.zeros_like(x0)
+        step = h * (1.0 + abs(x0[i]))
+        e[i] = step
+        out[:, i] = (np.asarray(f(x0 + e), dtype=float) - np.asarray(f(x0 - e), dtype=float)) / (2 * step)
+    return out
+
+
+class SampledLoop:
+    """Numeric laws of a derivation for the linearisation (all in double precision)."""
+
+    def __init__(self, d) -> None:
+        s = d.dynamics.sym
+        self.n = n = d.n
+        self.d = d
+        x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
+        th, dth = list(s.theta), list(s.dtheta)
+
+        def vec(args, m):
+            f = sp.lambdify(args, list(d.measured(m)), modules="numpy")
+            return lambda *a: np.array(f(*a), dtype=float).ravel()
+
+        self.J = sp.lambdify(th, d.J, modules="numpy")
+        self.G = vec(th + dth, d.G)
+        self.B = np.array(d.B.tolist(), dtype=float)
+        self.W = np.array(d.W.tolist(), dtype=float)
+        self.C = np.array(d.C.tolist(), dtype=float)
+        self.laws = {"mpc": vec(x, d.u_star), "dobc": vec(x + list(s.z), d.u_dobc),
+                     "npid": vec(x + list(s.int_e), d.u_npid)}
+
+    def accel(self, q, dq, u) -> np.ndarray:
+        return np.linalg.solve(np.array(self.J(*q), dtype=float), self.B @ u - self.G(*q, *dq))
+
+    def dG(self, q0: np.ndarray, dq0: np.ndarray) -> np.ndarray:
+        """dG/d(theta, theta') at a point: n x 2n."""
+        n = self.n
+        return _jac(lambda x: self.G(*x[:n], *x[n:]), np.concatenate([q0, dq0]))
+
+    def point(self, form: str, q0: np.ndarray, dq0: np.ndarray):
+        """Jacobians at an operating point: (df/dx, df/du, du/dx, du/dc, J, dr/dx)."""
+        n = self.n
+        yd, dyd = self.C @ q0, self.C @ dq0
+        ref = np.concatenate([yd, dyd, np.zeros(n)])
+        c0 = -self.W @ dq0 if form == "dobc" else np.zeros(n)
+        law = self.laws[form]
+
+        def u_of(xc):
+            args = np.concatenate([xc[:2 * n], ref, xc[2 * n:]]) if form != "mpc" else np.concatenate([xc[:2 * n], ref])
+            return law(*args)
+
+        xc0 = np.concatenate([q0, dq0] + ([c0] if form != "mpc" else []))
+        u0 = u_of(xc0)
+        Uxc = _jac(u_of, xc0)
+
+        def f(xu):
+            return np.concatenate([xu[n:2 * n], self.accel(xu[:n], xu[n:2 * n], xu[2 * n:])])
+
+        F = _jac(f, np.concatenate([q0, dq0, u0]))
+        # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
+        # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
+        dr = self.dG(q0, dq0) - np.hstack([np.zeros((n, n)), self.W])
+        return (F[:, :2 * n], F[:, 2 * n:], Uxc[:, :2 * n], Uxc[:, 2 * n:], np.array(self.J(*q0), dtype=float), dr)
+
+
+def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Configurations (a grid of every angle for n <= 2, else seeded random ones and 0) times the
+    speeds (rest and the stated box's vertices, at most 8 of them)."""
+    n = d.n
+    rng = np.random.default_rng(seed)
+    if n <= 2:
+        axis = np.linspace(-np.pi, np.pi, 8, endpoint=False)
+        configs = [np.array(p) for p in itertools.product(axis, repeat=n)]
+    else:
+        configs = [np.zeros(n)] + [rng.uniform(-np.pi, np.pi, n) for _ in range(count - 1)]
+    speeds = [np.zeros(n)]
+    box = d.arm.controller.max_joint_speed
+    if box is not None:
+        s = np.array([float(x) for x in box])
+        verts = [np.array(v) * s for v in itertools.product((1.0, -1.0), repeat=n)]
+        if len(verts) > 8:
+            verts = [verts[i] for i in rng.choice(len(verts), 8, replace=False)]
+        speeds += verts
+    return [(q, dq) for q in configs for dq in speeds]
+
+
+def sample_limit(d, form: str, observer: str = "explicit", points=None) -> SampleLimit:
+    """The largest stable sample time of ``form`` (module docstring), with the stated margin."""
+    loop = SampledLoop(d)
+    pts = operating_points(d) if points is None else points
+    lins = [loop.point(form, q0, dq0) for q0, dq0 in pts]
+    L = {key: np.stack([lin[i] for lin in lins]) for i, key in enumerate(("A", "Bu", "Ux", "Uc", "J", "dr"))}
+
+    def stable(dt: float) -> tuple[bool, int | None]:
+        rho = _radii(loop, form, observer, dt, L)
+        k = int(rho.argmax())
+        return (True, None) if rho[k] < 1.0 else (False, k)
+
+    lo, hi, bad = DT_MIN, None, None
+    ok, _ = stable(lo)
+    if not ok:
+        return SampleLimit(form, observer, 0.0, 0.0, len(pts), None)
+    dt = lo
+    while dt < DT_MAX:
+        dt = min(dt * 2, DT_MAX)
+        ok, k = stable(dt)
+        if not ok:
+            hi, bad = dt, k
+            break
+        lo = dt
+    if hi is None:
+        return SampleLimit(form, observer, math.inf, math.inf, len(pts), None)
+    while hi / lo > 1.01:
+        mid = math.sqrt(lo * hi)
+        ok, k = stable(mid)
+        if ok:
+            lo = mid
+        else:
+            hi, bad = mid, k
+    q0, dq0 = pts[bad]
+    return SampleLimit(form, observer, MARGIN * lo, lo, len(pts),
+                       (tuple(float(x) for x in q0), tuple(float(x) for x in dq0)))
+
+
+def _expm(M: np.ndarray) -> np.ndarray:
+    """exp of a stack of square matrices (... x k x k): scaling and squaring of a degree-18 Taylor
+    polynomial (relative error below 1e-15 at norms <= 1/2 after scaling)."""
+    norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
+    s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
+    A = M / (2.0 ** s)
+    E = np.broadcast_to(np.eye(M.shape[-1]), M.shape).copy()
+    term = E.copy()
+    for k in range(1, 19):
+        term = term @ A / k
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:
+    """Spectral radius of the sampled closed loop at every operating point (module docstring)."""
+    n, m = loop.n, 2 * loop.n
+    P = L["A"].shape[0]
+    aug = np.zeros((P, m + n, m + n))
+    aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
+    E = _expm(aug * dt)
+    Phi, Gam = E[:, :m, :m], E[:, :m, m:]
+    top = Phi + Gam @ L["Ux"]
+    if form == "mpc":
+        return np.abs(np.linalg.eigvals(top)).max(axis=-1)
+    if form == "npid":                      # int_e + dt (yd - C theta)
+        Sx = np.broadcast_to(np.hstack([-dt * loop.C, np.zeros((n, n))]), (P, n, m))
+        Sc = np.broadcast_to(np.eye(n), (P, n, n))
+        Su = np.zeros((P, n, n))
+    else:
+        A = L["J"] + (dt * loop.W if observer == "implicit" else 0.0)
+        K = dt * loop.W @ np.linalg.inv(A)
+        Sx, Sc, Su = K @ L["dr"], np.eye(n) - K, -K @ loop.B
+    M = np.concatenate([np.concatenate([top, Gam @ L["Uc"]], axis=-1),
+                        np.concatenate([Sx + Su @ L["Ux"], Sc + Su @ L["Uc"]], axis=-1)], axis=-2)
+    return np.abs(np.linalg.eigvals(M)).max(axis=-1)
+
+
+_LIMITS: dict = {}
+
+
+def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
+    """The sample-time limit of every form (FORMS) for one derivation (cached per derivation)."""
+    key = (id(d), observer)
+    hit = _LIMITS.get(key)
+    if hit is not None and hit[0] is d:
+        return hit[1]
+    out = {form: sample_limit(d, form, observer) for form in FORMS}
+    _LIMITS[key] = (d, out)
+    return out
+
+
+def _ms(x: float) -> str:
+    return "none below 1 s" if math.isinf(x) else f"{x * 1e3:.3g} ms"
+
+
+def summary(d, observer: str = "explicit") -> str:
+    """One line: the largest sample time of each form, as check, show and the headers print it."""
+    lim = limits(d, observer)
+    parts = ", ".join(f"{f.upper()} {_ms(lim[f].limit)}" for f in FORMS)
+    return (f"largest sample time (sampled loop, zero-order hold, {observer} observer step, linearised over "
+            f"{lim['dobc'].points} operating points, {int(round((1 - MARGIN) * 100))} % margin): {parts}")
+
+
+def too_slow(d, sample_time: float, forms=FORMS, observer: str = "explicit") -> list[str]:
+    """Sentences for the forms whose limit ``sample_time`` [s] exceeds (empty when none)."""
+    lim = limits(d, observer)
+    return [f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)} "
+            f"(the sampled loop is unstable from {_ms(lim[f].raw)} at some configuration)"
+            for f in forms if f in lim and sample_time > lim[f].limit]

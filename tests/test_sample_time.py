@@ -1,0 +1,114 @@
+"""The largest sample time of the generated controllers (issue 12, item 4).
+
+The limits come from the linearised sampled loop (derive.control.sampling); the tests hold them
+against closed-loop simulations of the generated controllers just below and well above them.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import derive
+from derive.cli import main
+from derive.control.sampling import MARGIN, limits, sample_limit
+from derive.errors import DeriveError
+from derive.sim.backends import Backend
+from derive.sim.simulate import Plant, run
+
+SMALL_ARM = Path(__file__).resolve().parent / "data" / "f6_small_arm.toml"
+
+
+def _small_arm() -> derive.Arm:
+    return derive.load_arm(SMALL_ARM)
+
+
+def test_default_arm_dobc_and_npid_limits_lie_between_10_and_20_ms(paper):
+    lim = limits(paper)
+    for form in ("dobc", "npid"):
+        assert 10e-3 < lim[form].limit < lim[form].raw < 20e-3, (form, lim[form])
+        assert lim[form].limit == pytest.approx(MARGIN * lim[form].raw)
+    assert lim["mpc"].limit > 0.1     # the predictive law alone tolerates far slower sampling
+
+
+def test_one_link_arm_of_0_1_m_gets_a_limit_near_0_33_ms():
+    d = derive.derive(_small_arm())
+    for form in ("dobc", "npid"):
+        lim = sample_limit(d, form)
+        assert lim.raw == pytest.approx(2 * float(d.J[0, 0]) / float(d.W[0, 0]), rel=0.02)   # 2 J / w: 0.333 ms
+        assert 0.30e-3 < lim.raw < 0.36e-3
+
+
+def test_implicit_observer_step_leaves_the_limit_where_it_is(paper):
+    """Backward Euler on z alone does not move the limit: in the sampled loop z + W theta' = B dhat
+    telescopes, and the fast mode is the held velocity feedback B^-1 W theta' of u, not z's step."""
+    exp, imp = sample_limit(paper, "dobc", "explicit"), sample_limit(paper, "dobc", "implicit")
+    assert imp.raw == pytest.approx(exp.raw, rel=0.03)
+
+
+@pytest.fixture(scope="module")
+def loops():
+    """(arm, derivation, generated Python controller) per arm, built once (the sample time is not baked in)."""
+    made = {}
+
+    def get(name: str):
+        if name not in made:
+            arm = derive.load_arm(None if name == "default" else SMALL_ARM)
+            d = derive.derive(arm)
+            made[name] = (arm, d, Backend(d, "python"))
+        return made[name]
+
+    yield get
+    for _, _, backend in made.values():
+        backend.close()
+
+
+def _simulate(loop, form: str, dt: float, duration: float, substeps: int = 4) -> float:
+    """Largest |e| over the last third of a run of ``form`` at sample time dt (inf if it blew up)."""
+    arm, d, backend = loop
+    settings = replace(arm.simulation, sample_time=dt, duration=duration, substeps=substeps)
+    try:
+        with np.errstate(all="ignore"):
+            tr = run(d, backend, Plant(arm, settings), settings, form)
+    except (DeriveError, FloatingPointError, np.linalg.LinAlgError, OverflowError):
+        return np.inf
+    e = np.abs(tr.yd - tr.theta)[2 * len(tr.t) // 3:]
+    return float(np.max(e)) if np.all(np.isfinite(e)) else np.inf
+
+
+@pytest.mark.parametrize("form", ["dobc", "npid"])
+def test_default_arm_tracks_just_below_the_limit_and_diverges_well_above_it(loops, form):
+    loop = loops("default")
+    lim = limits(loop[1])[form]
+    assert _simulate(loop, form, 0.98 * lim.limit, 9.0) < 0.05
+    assert _simulate(loop, form, 2.0 * lim.raw, 3.0) > 1.0
+
+
+@pytest.mark.parametrize("form", ["dobc", "npid"])
+def test_one_link_arm_tracks_just_below_the_limit_and_diverges_well_above_it(loops, form):
+    loop = loops("small")
+    lim = sample_limit(loop[1], form)
+    assert _simulate(loop, form, 0.98 * lim.limit, 1.5, substeps=1) < 0.05
+    assert _simulate(loop, form, 2.0 * lim.raw, 0.2, substeps=1) > 1.0
+
+
+def test_simulate_refuses_a_sample_time_above_the_limit_unless_forced(tmp_path, capsys):
+    args = ["simulate", str(SMALL_ARM), "--controllers", "npid", "--duration", "0.004", "--out", str(tmp_path / "s")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "simulation.sample_time of f6_small_arm: sample_time = 2 ms is above the NPID limit 0.298 ms" in err
+    assert "or pass --force" in err and not (tmp_path / "s").exists()
+    assert main(args + ["--force"]) == 0          # two samples: not yet diverged
+    assert main(["simulate", str(SMALL_ARM), "--controllers", "mpc", "--duration", "0.004",
+                 "--out", str(tmp_path / "m")]) == 0   # the predictive law alone is within its limit
+
+
+def test_generate_warns_and_show_prints_the_limits(tmp_path, capsys):
+    assert main(["generate", str(SMALL_ARM), "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "warning: simulation.sample_time of f6_small_arm: sample_time = 2 ms is above the DOBC limit" in err
+    assert main(["show"]) == 0
+    out = capsys.readouterr().out
+    assert "Sample time: largest sample time" in out and "DOBC 11." in out and "NPID 11." in out

@@ -128,7 +128,8 @@ def test_generate_warns_when_float_cannot_be_accurate(tmp_path):
     assert re.search(r"warning: --real float: expected relative error up to [0-9.e+]+ \(.*dobc sequence u", flt.stderr)
     assert "condition number up to 2.2e+05" in flt.stderr and "use --real double" in flt.stderr
     dbl = subprocess.run(run + ["--real", "double"], capture_output=True, text=True, cwd=ROOT)
-    assert dbl.returncode == 0 and "warning" not in dbl.stderr, dbl.stderr
+    # no accuracy warning in double (the sample-time warning of this 2 g wrist is another matter)
+    assert dbl.returncode == 0 and "warning: --real" not in dbl.stderr, dbl.stderr
 
 
 def _constants(kernels_c: str, kernel: str) -> list[tuple[int, str]]:

@@ -24,7 +24,7 @@ def compile_c(cc: str, sources: list[Path], out: Path, flags: list[str]) -> Path
 
 
 def library_sources(c_dir: Path, arm: str) -> list[Path]:
-    return [c_dir / f"{arm}.c", c_dir / f"{arm}_kernels.c"]
+    return [c_dir / f"{arm}.c", c_dir / f"{arm}_kernels.c", c_dir / f"{arm}_plant.c"]
 
 
 class CLib:

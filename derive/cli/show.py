@@ -226,6 +226,8 @@ def add_arguments(parser) -> None:
     add_arm_argument(parser)
     parser.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
     parser.add_argument("--exact", action="store_true", help="exact rationals instead of 6 digits")
+    parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...",
+                        help="print J, G, gravity, B, the free acceleration and the gains at this pose")
 
 
 def run(args) -> int:
@@ -238,7 +240,11 @@ def run(args) -> int:
 
     d = derive(load_arm(args.arm))
     report_warnings(d)
-    if args.latex:
+    if args.at is not None:
+        from derive.cli.pose import parse_pose, pose_text
+
+        text = pose_text(d, *parse_pose(args.at, d.n))
+    elif args.latex:
         text = render_latex(d, exact=args.exact)
     else:
         encoding = (getattr(sys.stdout, "encoding", None) or "").lower()

@@ -9,6 +9,7 @@ import json
 from importlib import metadata
 
 from derive.codegen.kernels import ParamsMode
+from derive.codegen.plant import plant_c_files, plant_view
 from derive.control.pipeline import Derivation
 from derive.codegen.render import render
 from derive.codegen.views import ArmView, arm_view, kernel_functions, selftest_view
@@ -43,6 +44,7 @@ def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None 
         **library_files(d, real, mode, v),
         f"c/{a}_selftest.c": render("c/selftest.c.jinja", v=v, t=t),
         "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v),
+        **plant_c_files(d, v, mode),
     }
 
 
@@ -50,7 +52,7 @@ def python_files(d: Derivation, mode: ParamsMode, v: ArmView | None = None) -> d
     """The numpy-only Python module, under ``python/`` (always double precision;
     ``v``: the arm's double view when already built)."""
     v = arm_view(d, "double", mode) if v is None else v
-    return {f"python/{d.arm.name}.py": render("python/arm.py.jinja", v=v)}
+    return {f"python/{d.arm.name}.py": render("python/arm.py.jinja", v=v, pl=plant_view(d, "double", mode))}
 
 
 def observer_manifest(d: Derivation) -> dict:

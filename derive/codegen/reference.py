@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import mpmath
 import sympy as sp
 from flint import arb, arb_mat
 
@@ -47,6 +48,7 @@ class Reference:
 
     def __init__(self, d: Derivation, u_max: Sequence[float] | None = None, prec: int = PRECISION):
         s = d.dynamics.sym
+        self._d = d
         self.n = n = d.n
         self.prec = prec
         e, _ = d.tracking_error
@@ -137,3 +139,51 @@ class Reference:
 
     def mpc_step(self, x):
         return self.saturate(self.mpc(x))[0]
+
+    # The plant (eq. 12), for the exported plant functions and `derive show --at`: mpmath at
+    # DIGITS + 10 digits (SymPy's own dependency), the matrices lambdified from the Derivation.
+
+    @staticmethod
+    def _mp_vec(m) -> list:
+        return [m[i] for i in range(m.rows)]
+
+    def _plant(self):
+        if not hasattr(self, "_plant_fns"):
+            d = self._d
+            s = d.dynamics.sym
+            th, dth = list(s.theta), list(s.dtheta)
+            self._plant_fns = {
+                "J": sp.lambdify(th, d.J, modules="mpmath"), "G": sp.lambdify(th + dth, d.G, modules="mpmath"),
+                "g": sp.lambdify(th, d.numeric(d.dynamics.gravity), modules="mpmath"), "B": d.B}
+        return self._plant_fns
+
+    def mass_matrix(self, theta):
+        """J(theta), row-major (n * n)."""
+        with mpmath.workdps(DIGITS + 10):
+            J = self._plant()["J"](*theta)
+            return [J[i, j] for i in range(self.n) for j in range(self.n)]
+
+    def bias(self, theta, dtheta):
+        with mpmath.workdps(DIGITS + 10):
+            return self._mp_vec(self._plant()["G"](*theta, *dtheta))
+
+    def gravity(self, theta):
+        with mpmath.workdps(DIGITS + 10):
+            return self._mp_vec(self._plant()["g"](*theta))
+
+    def input_matrix(self):
+        B = self._plant()["B"]
+        with mpmath.workdps(DIGITS + 10):
+            return [mpmath.mpf(sp.Rational(B[i, j]).p) / sp.Rational(B[i, j]).q
+                    for i in range(self.n) for j in range(self.n)]
+
+    def forward_dynamics(self, theta, dtheta, u, d):
+        """theta'' with J theta'' = B (u + d) - G, solved at 40 digits."""
+        with mpmath.workdps(DIGITS + 10):
+            f = self._plant()
+            n = self.n
+            B = mpmath.matrix(self.input_matrix())
+            B = mpmath.matrix([[B[i * n + j] for j in range(n)] for i in range(n)])
+            ud = mpmath.matrix([mpmath.mpf(a) + mpmath.mpf(b) for a, b in zip(u, d)])
+            rhs = B * ud - f["G"](*theta, *dtheta)
+            return self._mp_vec(mpmath.lu_solve(f["J"](*theta), rhs))

@@ -4,7 +4,7 @@ Arm glasgow_2link (glasgow_2link.toml): Two-link horizontal direct-drive arm of 
 
 Controllers of W.-H. Chen's nonlinear disturbance observer based control and
 nonlinear PID, the same functions and state handling as the generated C:
-mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid_init/npid_step
+mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), npid_init/npid_step
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
@@ -600,29 +600,6 @@ def _kernel_dobc_init(theta, dtheta, yd, dyd):
     return z0
 
 
-def _kernel_dhat(dtheta, z):
-    """Disturbance estimate of the observer state (eq. 22); 8 operations."""
-    dhat = [0.0] * 2
-    a0 = 14.782608695652174
-    a1 = dtheta[0]
-    a2 = a0 * a1
-    a3 = z[0]
-    a0 = a0 * a3
-    a2 = a2 + a0
-    dhat[0] = a2
-    a2 = 113.63636363636364
-    a1 = a2 * a1
-    a0 = z[1]
-    a2 = a2 * a0
-    a1 = a1 + a2
-    a2 = 227.27272727272728
-    a0 = dtheta[1]
-    a2 = a2 * a0
-    a1 = a1 + a2
-    dhat[1] = a1
-    return dhat
-
-
 def _finite(*vectors):
     return all(_isfinite(x) for v in vectors for x in v)
 
@@ -701,12 +678,220 @@ def dobc_step(state, inp, dt):
     return OK, np.array(u)
 
 
-def dobc_estimate(state, inp):
-    """(code, dhat): the estimate dhat = B^-1 (z + W theta') (eq. 22) of ``state``,
-    the one the next dobc_step from it uses; the state is not changed."""
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.z):
+def _kernel_mass_matrix(theta):
+    """Inertia matrix J(theta) (eq. 12, a6); 5 operations."""
+    J = [0.0] * 4
+    a0 = 0.17929666666666666
+    a1 = 0.0810084
+    a2 = theta[1]
+    a2 = _cos(a2)
+    a1 = a1 * a2
+    a0 = a0 + a1
+    J[0] = a0
+    a0 = 0.03181613333333334
+    a1 = 0.0405042
+    a1 = a1 * a2
+    a1 = a0 + a1
+    J[1] = a1
+    J[2] = a1
+    J[3] = a0
+    return J
+
+
+def _kernel_bias(theta, dtheta):
+    """G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 22 operations."""
+    G = [0.0] * 2
+    a0 = 0.019617647058823528
+    a1 = dtheta[0]
+    a0 = a0 * a1
+    a2 = 0.38
+    a3 = -0.10659
+    a4 = dtheta[1]
+    a5 = a1 + a4
+    a5 = a5 * a5
+    a3 = a3 * a5
+    a5 = -0.17518
+    a1 = a1 * a1
+    a5 = a5 * a1
+    a6 = theta[1]
+    a7 = _cos(a6)
+    a5 = a5 * a7
+    a3 = a3 + a5
+    a2 = a2 * a3
+    a6 = _sin(a6)
+    a2 = a2 * a6
+    a0 = a0 + a2
+    a2 = 0.0405042
+    a2 = a2 * a1
+    a2 = a2 * a6
+    a0 = a0 + a2
+    a3 = 0.0665684
+    a3 = a3 * a1
+    a3 = a3 * a7
+    a3 = a3 * a6
+    a0 = a0 + a3
+    G[0] = a0
+    a0 = 0.0004136
+    a0 = a0 * a4
+    a0 = a0 + a2
+    G[1] = a0
+    return G
+
+
+def _kernel_gravity(theta):
+    """Gravity torques g(theta); 0 operations."""
+    g = [0.0] * 2
+    a0 = 0.0
+    g[0] = a0
+    g[1] = a0
+    return g
+
+
+def _kernel_input_matrix():
+    """Input matrix B = diag(gear Kt / R) (eq. 12); 0 operations."""
+    B = [0.0] * 4
+    a0 = 0.06764705882352941
+    B[0] = a0
+    a0 = 0.0
+    B[1] = a0
+    B[2] = a0
+    a0 = 0.0088
+    B[3] = a0
+    return B
+
+
+def _kernel_forward_dynamics(theta, dtheta, u, d):
+    """Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 46 operations."""
+    ddtheta = [0.0] * 2
+    a0 = 0.03181613333333334
+    a1 = 0.17929666666666666
+    a2 = 0.0810084
+    a3 = theta[1]
+    a4 = _cos(a3)
+    a2 = a2 * a4
+    a1 = a1 + a2
+    a2 = a0 * a1
+    a5 = 0.0405042
+    a5 = a5 * a4
+    a5 = a0 + a5
+    a6 = a5 * a5
+    a2 = a2 - a6
+    a0 = a0 / a2
+    a6 = -0.019617647058823528
+    a7 = dtheta[0]
+    a6 = a6 * a7
+    a8 = 0.06764705882352941
+    a9 = d[0]
+    a9 = a8 * a9
+    a6 = a6 + a9
+    a9 = u[0]
+    a8 = a8 * a9
+    a6 = a6 + a8
+    a8 = -0.0405042
+    a9 = a7 * a7
+    a8 = a8 * a9
+    a3 = _sin(a3)
+    a8 = a8 * a3
+    a6 = a6 + a8
+    a10 = -0.38
+    a11 = -0.10659
+    a12 = dtheta[1]
+    a7 = a7 + a12
+    a7 = a7 * a7
+    a11 = a11 * a7
+    a7 = -0.17518
+    a7 = a7 * a9
+    a7 = a7 * a4
+    a11 = a11 + a7
+    a10 = a10 * a11
+    a10 = a10 * a3
+    a6 = a6 + a10
+    a10 = -0.0665684
+    a10 = a10 * a9
+    a10 = a10 * a4
+    a10 = a10 * a3
+    a6 = a6 + a10
+    a0 = a0 * a6
+    a5 = a5 / a2
+    a10 = -0.0004136
+    a10 = a10 * a12
+    a12 = 0.0088
+    a3 = d[1]
+    a3 = a12 * a3
+    a10 = a10 + a3
+    a3 = u[1]
+    a12 = a12 * a3
+    a10 = a10 + a12
+    a10 = a10 + a8
+    a8 = a5 * a10
+    a0 = a0 - a8
+    ddtheta[0] = a0
+    a1 = a1 / a2
+    a1 = a1 * a10
+    a5 = a5 * a6
+    a1 = a1 - a5
+    ddtheta[1] = a1
+    return ddtheta
+
+
+def mass_matrix(theta):
+    """inertia matrix J(theta), n x n (eq. 12) [kg m^2].
+
+    Returns (code, J), an N x N array; (ENONFINITE, None) for a non-finite input or result.
+    """
+    if not _finite(theta):
         return ENONFINITE, None
-    (dhat,) = (_kernel_dhat(inp.dtheta, state.z),)
-    if not _finite(dhat):
+    (J,) = (_kernel_mass_matrix(theta),)
+    if not _finite(J):
         return ENONFINITE, None
-    return OK, np.array(dhat)
+    return OK, np.array(J).reshape(N, N)
+
+
+def bias(theta, dtheta):
+    """G(theta, theta'): Coriolis, centrifugal, gravity and damping torques (eq. 12) [N m].
+
+    Returns (code, G); (ENONFINITE, None) for a non-finite input or result.
+    """
+    if not _finite(theta, dtheta):
+        return ENONFINITE, None
+    (G,) = (_kernel_bias(theta, dtheta),)
+    if not _finite(G):
+        return ENONFINITE, None
+    return OK, np.array(G)
+
+
+def gravity(theta):
+    """gravity torques g(theta) = G(theta, 0) without damping [N m].
+
+    Returns (code, g); (ENONFINITE, None) for a non-finite input or result.
+    """
+    if not _finite(theta):
+        return ENONFINITE, None
+    (g,) = (_kernel_gravity(theta),)
+    if not _finite(g):
+        return ENONFINITE, None
+    return OK, np.array(g)
+
+
+def input_matrix():
+    """input matrix B, n x n (eq. 12) [N m/V].
+
+    Returns (code, B), an N x N array; (ENONFINITE, None) for a non-finite input or result.
+    """
+    (B,) = (_kernel_input_matrix(),)
+    if not _finite(B):
+        return ENONFINITE, None
+    return OK, np.array(B).reshape(N, N)
+
+
+def forward_dynamics(theta, dtheta, u, d):
+    """joint accelerations theta'' [rad/s^2] with J theta'' = B (u + d) - G.
+
+    Returns (code, ddtheta); (ENONFINITE, None) for a non-finite input or result.
+    """
+    if not _finite(theta, dtheta, u, d):
+        return ENONFINITE, None
+    (ddtheta,) = (_kernel_forward_dynamics(theta, dtheta, u, d),)
+    if not _finite(ddtheta):
+        return ENONFINITE, None
+    return OK, np.array(ddtheta)

@@ -97,12 +97,12 @@ def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
     """Kernels and exported functions of the plant for one real type and mode."""
     specs = plant_specs(d, mode)
     docs = {name: doc for name, _, doc in QUANTITIES}
-    real = f"{d.arm.name}_real"
+    ctype = f"{d.arm.name}_real"
 
     def function(k: KernelSpec) -> PlantFunction:
         inputs = tuple(p for p in k.inputs if p.name != "p")
         out = k.outputs[0]
-        c_args = tuple(f"const {real} {p.name}[{p.size}]" for p in inputs) + (f"{real} {out.name}[{out.size}]",)
+        c_args = tuple(f"const {ctype} {p.name}[{p.size}]" for p in inputs) + (f"{ctype} {out.name}[{out.size}]",)
         return PlantFunction(name=k.name, output=out.name, size=out.size, inputs=tuple(p.name for p in inputs),
                              c_args=c_args, matrix=k.name in ("mass_matrix", "input_matrix"), doc=docs[k.name])
 

@@ -48,14 +48,22 @@ def obligations() -> tuple[Obligation, ...]:
     return (*project_obligations(), *paper_obligations())
 
 
-def check(d: Derivation | None, selected: tuple[Obligation, ...] | None = None) -> tuple[Result, ...]:
+def check(d: Derivation | None, selected: tuple[Obligation, ...] | None = None,
+          show: bool = False) -> tuple[Result, ...]:
     """Run the obligations (default: all) on a Derivation; ``None`` runs the paper's
-    obligations in generic symbols (an arm only seeds their counterexample search)."""
+    obligations in generic symbols (an arm only seeds their counterexample search).
+    ``show``: a progress bar on a terminal (derive.progress)."""
+    from derive.progress import progress
     from derive.proofs.core import run as run_all
 
     if selected is None:
         selected = obligations() if d is not None else paper_obligations()
-    return run_all(selected, d)
+    results: list[Result] = []
+    with progress(total=len(selected), desc="check", unit="obligation", disable_bar=not show) as bar:
+        for ob in selected:
+            results += run_all((ob,), d)
+            bar.update()
+    return tuple(results)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -87,9 +95,9 @@ def run(args: argparse.Namespace) -> int:
     if args.arm is not None or not args.paper:
         d = derive(load_arm(args.arm))
         report_warnings(d)
-        results = check(d, project_obligations())
+        results = check(d, project_obligations(), show=True)
     if args.paper:
-        results += check(None, paper_obligations())
+        results += check(None, paper_obligations(), show=True)
     seconds = time.perf_counter() - start
     code = exit_code(results)
     sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))

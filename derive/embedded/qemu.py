@@ -300,6 +300,7 @@ def run(args: argparse.Namespace) -> int:
     from derive.control.pipeline import derive
     from derive.control.ranges import check_ranges
     from derive.model.spec import load_arm, resolve_arm_path
+    from derive.progress import progress
 
     check_toolchain()
     targets = [t for t in TARGETS if args.target in ("all", t.name)]
@@ -319,13 +320,16 @@ def run(args: argparse.Namespace) -> int:
             sources[real] = root / f"src-{real}" / arm.name
             write_tree(sources[real], generate_files(d, arm_bytes, real, ParamsMode.BAKED))
         results = []
-        for t in targets:
-            for real in t.reals:
-                print(f"derive: {t.core} ({t.machine}), {real}: building and running", file=sys.stderr)
+        configurations = [(t, real) for t in targets for real in t.reals]
+        with progress(total=len(configurations), desc="embedded", unit="target") as bar:
+            for t, real in configurations:
+                bar.set_postfix_str(f"{t.core}, {real}")
                 r = evaluate(t, real, sources[real] / "c", arm.name, root / f"{t.name}-{real}")
                 if r.problem or r.failed:
-                    print(r.output.rstrip(), r.problem, sep="\n", file=sys.stderr)
+                    bar.write(f"derive: {t.core} ({t.machine}), {real}:\n{r.output.rstrip()}\n{r.problem}",
+                              file=sys.stderr)
                 results.append(r)
+                bar.update()
     print(table(arm.name, results))
     ok = all(r.ok for r in results)
     total = (sum(r.passed for r in results), sum(r.failed for r in results))

@@ -21,6 +21,10 @@ position_noise      [0, ...]               potentiometer noise std [rad]
 tacho_filter_hz     0.0                    first-order low-pass on theta-dot, 0 = none
 initial_theta       [0, ...]               the arm's initial joint angles [rad] (at rest)
 seed                1                      noise seed
+link_mass_scale     [1, ...]               mass factor of each link (its inertia scales too)
+torque_constant_scale   [1, ...]           factor on each motor's torque constant
+voltage_constant_scale  [1, ...]           factor on each motor's voltage constant
+resistance_scale    [1, ...]               factor on each motor's resistance
 ==================  =====================  ===========================================
 
 The default friction makes the predictive controller's steady-state error
@@ -57,6 +61,10 @@ class SimSettings:
     tacho_filter_hz: float = 0.0
     seed: int = 1
     initial_theta: tuple[float, ...] = ()
+    link_mass_scale: tuple[float, ...] = ()
+    torque_constant_scale: tuple[float, ...] = ()
+    voltage_constant_scale: tuple[float, ...] = ()
+    resistance_scale: tuple[float, ...] = ()
 
 
 def default_settings(n: int) -> SimSettings:
@@ -65,13 +73,17 @@ def default_settings(n: int) -> SimSettings:
                        coulomb_friction=tuple(0.05 if i == 0 else 0.01 for i in range(n)),
                        viscous_friction=tuple(0.01 if i == 0 else 0.002 for i in range(n)),
                        disturbance=tuple(0.3 if i == 0 else 0.1 for i in range(n)), velocity_noise=(0.0,) * n,
-                       position_noise=(0.0,) * n, initial_theta=(0.0,) * n)
+                       position_noise=(0.0,) * n, initial_theta=(0.0,) * n, link_mass_scale=(1.0,) * n,
+                       torque_constant_scale=(1.0,) * n, voltage_constant_scale=(1.0,) * n,
+                       resistance_scale=(1.0,) * n)
 
 
 _SCALARS = {"duration": (0.0, True), "sample_time": (0.0, True), "pulse_period": (0.0, True),
             "amplitude_deg": (None, False), "payload_scale": (0.0, False), "tacho_filter_hz": (0.0, False)}
 _VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "disturbance": None,
-            "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None}
+            "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None, "link_mass_scale": 0.0,
+            "torque_constant_scale": 0.0, "voltage_constant_scale": 0.0, "resistance_scale": 0.0}
+_POSITIVE = {"link_mass_scale", "torque_constant_scale", "resistance_scale"}  # factors that must stay > 0
 
 
 def _finite(v: Any) -> bool:
@@ -112,9 +124,9 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
             v = table[key]
             ok = isinstance(v, list) and len(v) == n and all(_finite(x) for x in v)
             if ok and low is not None:
-                ok = all(x >= low for x in v)
+                ok = all(x > low if key in _POSITIVE else x >= low for x in v)
             if not ok:
-                bound = "" if low is None else f" >= {low:g}"
+                bound = "" if low is None else f" {'>' if key in _POSITIVE else '>='} {low:g}"
                 problems.append(Problem(f"simulation.{key}", f"an array of {n} finite numbers{bound}",
                                         repr(v)[:60]))
             else:

@@ -25,6 +25,14 @@ from derive.codegen.kernels import ParamsMode
 from derive.control.pipeline import Derivation
 
 
+class ControllerError(DeriveError):
+    """A generated controller returned a non-zero code (``code``)."""
+
+    def __init__(self, message: str, code: int):
+        super().__init__(message)
+        self.code = code
+
+
 class Controller(Protocol):
     """One form of a generated controller; raises DeriveError on a non-zero code."""
 
@@ -57,7 +65,7 @@ class PythonController:
         if self.s is not None:
             code = getattr(self.m, f"{self.form}_init")(self.params, self.s, self._inp(x))
             if code:
-                raise DeriveError(f"{self.form}_init returned {code}")
+                raise ControllerError(f"{self.form}_init returned {code}", code)
 
     def step(self, x, dt: float) -> np.ndarray:
         if self.s is None:
@@ -65,7 +73,7 @@ class PythonController:
         else:
             code, u = getattr(self.m, f"{self.form}_step")(self.params, self.s, self._inp(x), dt)
         if code:
-            raise DeriveError(f"{self.form}_step returned {code} at x = {list(x)}")
+            raise ControllerError(f"{self.form}_step returned {code}", code)
         return u
 
     @property
@@ -100,7 +108,7 @@ class CController:
         if self.form != "mpc":
             code = self._call(f"{self.form}_init", self.s, self.x)
             if code:
-                raise DeriveError(f"{self.form}_init returned {code}")
+                raise ControllerError(f"{self.form}_init returned {code}", code)
 
     def step(self, x, dt: float) -> np.ndarray:
         self.x[:] = list(x)
@@ -109,7 +117,7 @@ class CController:
         else:
             code = self._call(f"{self.form}_step", self.s, self.x, self.dt(dt), self.u)
         if code:
-            raise DeriveError(f"{self.form}_step returned {code} at x = {list(x)}")
+            raise ControllerError(f"{self.form}_step returned {code}", code)
         return np.array(self.u[:])
 
     @property

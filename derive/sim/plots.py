@@ -20,6 +20,18 @@ LABEL = {"mpc": "MPC (eq. 15)", "dobc": "DOBC (eq. 27)", "npid": "NPID (eq. 34)"
          "npid_unprotected": "PID without anti-windup"}
 
 
+def _label(tr: Trace) -> str:
+    """The legend entry; a failed run says where it stopped."""
+    label = LABEL.get(tr.name, tr.name)
+    return label if tr.failure is None else f"{label}: FAILED at t = {tr.failure.time:.3g} s"
+
+
+def _mark_failure(ax, tr: Trace, values: np.ndarray, color: str) -> None:
+    """A cross at the last sample of a failed run."""
+    if tr.failure is not None and len(tr.t):
+        ax.plot([tr.t[-1]], [values[-1]], marker="x", ms=10, mew=2, color=color, ls="none")
+
+
 def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
@@ -32,9 +44,11 @@ def link_figure(traces: list[Trace], i: int) -> bytes:
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for tr in traces:
         color, ls = STYLE.get(tr.name, ("k", "-"))
-        axes[0].plot(tr.t, tr.u[:, i], color=color, ls=ls, lw=1, label=LABEL.get(tr.name, tr.name))
+        axes[0].plot(tr.t, tr.u[:, i], color=color, ls=ls, lw=1, label=_label(tr))
         axes[1].plot(tr.t, np.degrees(tr.dtheta[:, i]), color=color, ls=ls, lw=1)
         axes[2].plot(tr.t, np.degrees(tr.theta[:, i]), color=color, ls=ls, lw=1)
+        for ax, values in zip(axes, (tr.u[:, i], np.degrees(tr.dtheta[:, i]), np.degrees(tr.theta[:, i]))):
+            _mark_failure(ax, tr, values, color)
     axes[2].plot(traces[0].t, np.degrees(traces[0].yd[:, i]), color="k", lw=0.8, ls="-.", label="y_d")
     for ax, label in zip(axes, ("u [V]", "velocity [deg/s]", "position [deg]")):
         ax.set_ylabel(label)
@@ -55,8 +69,9 @@ def error_figure(traces: list[Trace]) -> bytes:
         ax = axes[i, 0]
         for tr in traces:
             color, ls = STYLE.get(tr.name, ("k", "-"))
-            ax.plot(tr.t, np.degrees(tr.yd[:, i] - tr.theta[:, i]), color=color, ls=ls, lw=1,
-                    label=LABEL.get(tr.name, tr.name))
+            e = np.degrees(tr.yd[:, i] - tr.theta[:, i])
+            ax.plot(tr.t, e, color=color, ls=ls, lw=1, label=_label(tr))
+            _mark_failure(ax, tr, e, color)
         ax.set_ylabel(f"e{i + 1} [deg]")
         ax.grid(True, lw=0.3)
     axes[0, 0].legend(loc="upper right", fontsize=8)

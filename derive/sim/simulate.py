@@ -15,61 +15,45 @@ y_d' and y_d'' are the filter's states and its ODE, never differences.
 from __future__ import annotations
 
 import math
-import sys
-from dataclasses import dataclass, replace
-from fractions import Fraction
+from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
-from derive.sim.backends import Backend
-from derive.dynamics.planar import derive_dynamics
 from derive.control.pipeline import Derivation
+from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
-from derive.model.spec import Arm
+from derive.progress import progress
+from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
 
 CONTROLLERS = ("mpc", "dobc", "npid")
 VARIANTS = {"mpc": ("mpc", True), "dobc": ("dobc", True), "npid": ("npid", True),
             "npid_unprotected": ("npid", False),   # form, limits known to the controller
             "dobc_zero_init": ("dobc", True)}      # dhat(0) = 0 instead of the derived estimate
-SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
+ERRORS = {1: "a non-finite input, state or result (ENONFINITE)", 2: "a bad sample time (EDT)"}
 
 
-def true_arm(arm: Arm, s: SimSettings) -> Arm:
-    """The plant's arm: the last link's point masses scaled by payload_scale."""
-    scale = Fraction(repr(s.payload_scale))
-    masses = tuple(replace(p, mass=p.mass * scale) if p.link == arm.n - 1 else p for p in arm.point_masses)
-    return replace(arm, point_masses=masses)
+@dataclass(frozen=True)
+class Failure:
+    """Where and why a run stopped: the controller refused a sample."""
 
+    time: float          # s
+    step: int
+    code: int
+    error: str           # what the code means
+    joint: int | None    # 1-based joint that went non-finite or moved fastest
+    cause: str           # the likely cause, in words
+    inputs: tuple[float, ...]  # theta, theta', yd, yd', yd'' it refused
 
-class Plant:
-    """x' = f(x, u) for x = (theta, theta'), the true arm with friction."""
-
-    def __init__(self, arm: Arm, s: SimSettings):
-        dyn = derive_dynamics(true_arm(arm, s))
-        rep = dict(dyn.params.values)
-        args = list(dyn.sym.theta + dyn.sym.dtheta)
-        n = self.n = arm.n
-        exprs = list(dyn.J.xreplace(rep)) + list(dyn.G.xreplace(rep))
-        self._jg = sp.lambdify(args, exprs, modules="math", cse=True)
-        self.B = np.array(dyn.B.xreplace(rep).tolist(), dtype=float).diagonal()
-        self.coulomb = np.array(s.coulomb_friction)
-        self.viscous = np.array(s.viscous_friction)
-        self.d = np.array(s.disturbance)
-        self.u_max = np.array([float(m.input_limit) if m.input_limit else math.inf for m in arm.motors])
-        self._n2 = n * n
-
-    def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
-        vals = self._jg(*q, *dq)
-        J = np.array(vals[: self._n2]).reshape(self.n, self.n)
-        G = np.array(vals[self._n2:])
-        friction = self.coulomb * np.tanh(dq / SMOOTH) + self.viscous * dq
-        return np.linalg.solve(J, self.B * (u + self.d) - G - friction)
+    def message(self, name: str) -> str:
+        joint = f" at joint {self.joint}" if self.joint is not None else ""
+        return (f"{name}: the controller step returned {self.code} ({self.error}) at t = {self.time:.4g} s "
+                f"(sample {self.step}){joint}; likely cause: {self.cause}")
 
 
 @dataclass(frozen=True)
 class Trace:
-    """One controller's run: sample times (k), per-sample arrays (k x n)."""
+    """One controller's run: sample times (k), per-sample arrays (k x n); cut
+    at ``failure`` when the controller refused a sample."""
 
     name: str
     t: np.ndarray
@@ -79,6 +63,7 @@ class Trace:
     u: np.ndarray
     dhat: np.ndarray | None
     saturated: np.ndarray
+    failure: Failure | None = None
 
 
 def pulse(t: float, start: float, period: float, amplitude: float) -> float:
@@ -88,58 +73,174 @@ def pulse(t: float, start: float, period: float, amplitude: float) -> float:
     return amplitude if ((t - start) % period) < period / 2 else 0.0
 
 
-def run(d: Derivation, backend: Backend, plant: Plant, s: SimSettings, name: str,
-        progress: bool = False) -> Trace:
-    """Simulate one controller variant (see VARIANTS) for ``s.duration`` seconds."""
-    form, protected = VARIANTS[name]
-    n, dt = d.n, s.sample_time
-    limits = [float(m.input_limit) if (m.input_limit and protected) else 0.0 for m in d.arm.motors]
-    ctl = backend.controller(form, limits)
-    steps = int(round(s.duration / dt))
+def pulses(s: SimSettings, n: int, steps: int) -> np.ndarray:
+    """The sampled pulse trains r (steps x n), equal to :func:`pulse` at t = k dt."""
+    t = np.arange(steps) * s.sample_time
     amp = math.radians(s.amplitude_deg)
+    r = np.zeros((steps, n))
+    for i in range(n):
+        on = (t >= s.start[i]) & (np.mod(t - s.start[i], s.pulse_period) < s.pulse_period / 2)
+        r[on, i] = amp
+    return r
+
+
+def noise(s: SimSettings, n: int, steps: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Position and velocity noise (steps x n each), the draws of the reference
+    loop (rng.normal(0, 1, n) for theta then theta' at every sample); None when zero."""
+    if not (any(s.position_noise) or any(s.velocity_noise)):
+        return None, None
+    draws = np.random.default_rng(s.seed).normal(0.0, 1.0, (steps, 2, n))
+    return draws[:, 0, :] * np.array(s.position_noise), draws[:, 1, :] * np.array(s.velocity_noise)
+
+
+def tacho_alpha(s: SimSettings) -> float:
+    """Gain of the first-order tachometer filter at the sample time (1 = no filter)."""
+    return 1.0 - math.exp(-2 * math.pi * s.tacho_filter_hz * s.sample_time) if s.tacho_filter_hz > 0 else 1.0
+
+
+def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inputs) -> Failure:
+    """A failure named: time, error, joint, and the likely cause (the observer's
+    forward Euler step unstable at this sample time, the arm driven off, ...)."""
+    n = d.n
+    x = np.array(inputs, dtype=float)
+    bad = [i for i in range(n) if not (np.isfinite(x[i]) and np.isfinite(x[n + i]))]
+    if bad:
+        joint = bad[0] + 1
+    else:
+        joint = int(np.argmax(np.abs(x[n:2 * n]))) + 1
+    causes = []
+    form = VARIANTS.get(name, (name, True))[0]
+    if not bad:
+        import sympy as sp
+
+        J = np.array(sp.lambdify(d.theta, d.J, "numpy")(*x[:n]), dtype=float)
+        W = np.array(d.W.tolist(), dtype=float)
+        rho = float(max(abs(np.linalg.eigvals(W @ np.linalg.inv(J)))))
+        if form == "dobc" and rho * s.sample_time >= 2:
+            causes.append(f"the sample time {s.sample_time:g} s is too long for the observer: dt times the "
+                          f"spectral radius of L = W J^-1 is {rho * s.sample_time:.3g} >= 2 at this pose, so its "
+                          f"forward Euler step (eq. 21) is unstable; use sample_time < {2 / rho:.3g} s or smaller w")
+        elif rho * s.sample_time >= 1:
+            causes.append(f"the sample time {s.sample_time:g} s is long for the observer (dt times the spectral "
+                          f"radius of W J^-1 is {rho * s.sample_time:.3g}); try a shorter sample_time")
+    speed = float(np.max(np.abs(x[n:2 * n]))) if not bad else math.inf
+    if bad or speed > 100:
+        causes.append(f"the arm was driven off (joint {joint} at {speed:.3g} rad/s): the closed loop is unstable "
+                      "at this sample time or under these limits")
+    if not causes:
+        causes.append("the control law's result was not finite at this input (a singular pose or an "
+                      "unstable closed loop)")
+    return Failure(time=step * s.sample_time, step=step, code=code, error=ERRORS.get(code, f"code {code}"),
+                   joint=joint, cause="; ".join(causes), inputs=tuple(float(v) for v in x))
+
+
+def _trace(name: str, s: SimSettings, plant: TruePlant | Plant, form: str, theta, dtheta, yd, u, dhat,
+           failure: Failure | None) -> Trace:
+    u_max = np.asarray(plant.u_max, dtype=float)
+    t = np.arange(len(theta)) * s.sample_time
+    sat = np.abs(u) >= u_max * (1 - 1e-12)
+    return Trace(name, t, theta, dtheta, yd, u, dhat if form == "dobc" else None, sat.astype(bool), failure)
+
+
+def run(d: Derivation, backend, plant: Plant, s: SimSettings, name: str, show: bool = False) -> Trace:
+    """The Python-stepped reference run of one controller variant (see :func:`run_many`)."""
+    return run_many(d, backend, plant, s, [name], show)[name]
+
+
+def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: bool = False) -> dict[str, Trace]:
+    """The Python-stepped reference: simulate controller variants (see VARIANTS)
+    for ``s.duration`` seconds, the controllers of ``backend`` (python or c) called
+    once per sample, the plants integrated by numpy in lockstep (one row per
+    variant: each row does exactly the arithmetic of a run of its own). ``show``:
+    a progress bar on a terminal (derive.progress)."""
+    n, dt = d.n, s.sample_time
+    runs = []
+    for name in names:
+        form, protected = VARIANTS[name]
+        limits = [float(m.voltage_limit) if (m.voltage_limit and protected) else 0.0 for m in d.arm.motors]
+        runs.append((name, form, backend.controller(form, limits)))
+    steps = int(round(s.duration / dt))
     rng = np.random.default_rng(s.seed)
-    alpha = 1.0 - math.exp(-2 * math.pi * s.tacho_filter_hz * dt) if s.tacho_filter_hz > 0 else 1.0
+    alpha = tacho_alpha(s)
     W = np.array(d.W.tolist(), dtype=float)
     Binv = 1.0 / np.array(d.B.tolist(), dtype=float).diagonal()
-    x = np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)])  # plant state, at rest
-    f = np.zeros(2 * n)            # reference filter states (y, y') per link
-    dq_filtered = np.zeros(n)
-    out = {k: np.zeros((steps, n)) for k in ("theta", "dtheta", "yd", "u", "dhat", "sat")}
+    r_all = pulses(s, n, steps)
+    rows = len(runs)
+    x = np.tile(np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)]), (rows, 1))  # at rest
+    f = np.zeros(2 * n)            # reference filter states (y, y') per link, the same for every run
+    dq_filtered = np.zeros((rows, n))
+    out = {k: np.zeros((rows, steps, n)) for k in ("theta", "dtheta", "yd", "u", "dhat")}
+    ended = [steps] * rows
+    failures: list[Failure | None] = [None] * rows
+    live = list(range(rows))       # rows of x that still run, in order
     h = dt / s.substeps
+    bar = progress(total=steps, desc=f"simulating {', '.join(names)}", unit="sample", disable_bar=not show)
     for k in range(steps):
-        t = k * dt
-        r = np.array([pulse(t, s.start[i], s.pulse_period, amp) for i in range(n)])
+        bar.update()
+        r = r_all[k]
         yd, dyd = f[:n], f[n:]
         ddyd = r - 1.8 * dyd - yd
-        q_meas = x[:n] + rng.normal(0.0, 1.0, n) * np.array(s.position_noise)
-        dq_meas = x[n:] + rng.normal(0.0, 1.0, n) * np.array(s.velocity_noise)
+        q_meas = x[:, :n] + rng.normal(0.0, 1.0, n) * np.array(s.position_noise)
+        dq_meas = x[:, n:] + rng.normal(0.0, 1.0, n) * np.array(s.velocity_noise)
         dq_filtered = dq_meas if k == 0 else dq_filtered + alpha * (dq_meas - dq_filtered)
-        inp = np.concatenate([q_meas, dq_filtered, yd, dyd, ddyd])
-        if k == 0:
-            ctl.init(inp)
-            if name == "dobc_zero_init":  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
-                ctl.state = list(-(W @ dq_filtered))
-        if form == "dobc":  # the estimate this step uses (eq. 22)
-            out["dhat"][k] = Binv * (np.array(ctl.state) + W @ dq_filtered)
-        u = np.clip(ctl.step(inp, dt), -plant.u_max, plant.u_max)  # the amplifier saturates anyway
-        out["theta"][k], out["dtheta"][k], out["yd"][k], out["u"][k] = x[:n], x[n:], yd, u
-        out["sat"][k] = np.abs(u) >= plant.u_max * (1 - 1e-12)
+        u = np.zeros((len(live), n))
+        dead = []
+        for row, j in enumerate(live):
+            name, form, ctl = runs[j]
+            inp = np.concatenate([q_meas[row], dq_filtered[row], yd, dyd, ddyd])
+            try:
+                if k == 0:
+                    ctl.init(inp)
+                    if name == "dobc_zero_init":  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
+                        ctl.state = list(-(W @ dq_filtered[row]))
+                if form == "dobc":  # the estimate this step uses (eq. 22)
+                    out["dhat"][j, k] = Binv * (np.array(ctl.state) + W @ dq_filtered[row])
+                u[row] = np.clip(ctl.step(inp, dt), -plant.u_max, plant.u_max)  # the amplifier saturates anyway
+            except ControllerError as exc:
+                failures[j], ended[j] = diagnose(d, s, name, k, exc.code, inp), k
+                dead.append(row)
+                continue
+            out["theta"][j, k], out["dtheta"][j, k], out["yd"][j, k], out["u"][j, k] = x[row, :n], x[row, n:], yd, u[row]
+        if dead:
+            keep = [row for row in range(len(live)) if row not in dead]
+            live, x, u, dq_filtered = [live[row] for row in keep], x[keep], u[keep], dq_filtered[keep]
+            if not live:
+                break
         for _ in range(s.substeps):
             x, f = _rk4(plant, x, f, u, r, h)
-        if progress and k % max(1, steps // 20) == 0:
-            print(f"\rsimulating {name}: {100 * k // steps:3d}%", end="", file=sys.stderr, flush=True)
-    if progress:
-        print(f"\rsimulating {name}: 100%", file=sys.stderr)
-    t = np.arange(steps) * dt
-    return Trace(name, t, out["theta"], out["dtheta"], out["yd"], out["u"],
-                 out["dhat"] if form == "dobc" else None, out["sat"].astype(bool))
+    bar.close()
+    return {name: _trace(name, s, plant, form, *(out[key][j, :ended[j]] for key in ("theta", "dtheta", "yd", "u",
+                                                                                    "dhat")), failures[j])
+            for j, (name, form, _) in enumerate(runs)}
 
 
-def _rk4(plant: Plant, x, f, u, r, h):
+def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: str) -> Trace:
+    """One controller variant in compiled code (derive.sim.compiled): the same
+    run as :func:`run`, with the whole loop in C and Python called once."""
+    from derive.sim.compiled import run_loop
+
+    form, protected = VARIANTS[name]
+    n, dt = d.n, s.sample_time
+    steps = int(round(s.duration / dt))
+    nq, ndq = noise(s, n, steps)
+    x0 = np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)])
+    W = np.array(loop.W)
+    state0 = None
+    if name == "dobc_zero_init":  # z(0) = -W theta'_measured(0), as the reference sets it
+        state0 = -(W @ (x0[n:] + (ndq[0] if ndq is not None else 0.0)))
+    raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.disturbance, plant.u_max,
+                   pulses(s, n, steps), nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps)
+    dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
+    failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None
+    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure)
+
+
+def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarray, h: float):
+    """One RK4 step of the plants x (runs x 2n) and the reference filter f (2n), u and r held."""
     n = plant.n
 
     def deriv(x, f):
-        return (np.concatenate([x[n:], plant.accel(x[:n], x[n:], u)]),
+        return (np.concatenate([x[:, n:], plant.accel(x[:, :n], x[:, n:], u)], axis=1),
                 np.concatenate([f[n:], r - 1.8 * f[n:] - f[:n]]))
 
     k1 = deriv(x, f)

@@ -1,0 +1,99 @@
+"""The simulator's kernels: the plant's forward dynamics with Coulomb friction,
+one RK4 substep of plant and reference filter, the measurement and the
+reference outputs, as CasADi functions printed to C (derive.codegen.printing).
+
+All of the simulator's maths is here; the loop template (templates/sim/loop.c.jinja)
+only sequences the kernels and the generated controller's steps.
+
+* accel(theta, theta', u, d, tau_c, p) = theta'' with
+  J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) (eq. 12 plus friction),
+  J and G of the Derivation in its parameter symbols p (the true plant's values
+  at run time), solved numerically (CasADi's linear solve), never J^-1;
+* rk4(x, f, u, d, tau_c, r, h, p) -> (x', f'): one classical RK4 step of length h
+  of the plant x = (theta, theta') and the reference filter
+  Gr(s) = 1 / (s^2 + 1.8 s + 1) with states f = (y_d, y_d') driven by r (section 5.2);
+  u, d and r are held over the step (zero-order hold);
+* measure(x, n_q, n_dq, v, alpha) -> (theta_m, v'): measured angles theta + n_q and
+  the tachometer filter v' = v + alpha (theta' + n_dq - v) (section 5.1);
+* reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import sympy as sp
+
+from derive.codegen.casadi_bridge import to_function
+from derive.codegen.kernels import KernelSpec, LinearSolve, Port
+from derive.codegen.printing import print_function
+from derive.control.pipeline import Derivation
+from derive.sim.plant import SMOOTH
+
+GR_DAMPING = 1.8  # Gr(s) = 1 / (s^2 + 1.8 s + 1), section 5.2
+
+
+def accel_spec(d: Derivation) -> KernelSpec:
+    """Forward dynamics of the true plant with Coulomb friction, in parameter symbols."""
+    s, dyn, n = d.dynamics.sym, d.dynamics, d.n
+    dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
+    tau_c = tuple(sp.Symbol(f"tauc{i + 1}", real=True) for i in range(n))
+    y = tuple(sp.Symbol(f"ddtheta{i + 1}", real=True) for i in range(n))
+    friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) for c, v in zip(tau_c, s.dtheta)])
+    rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - dyn.G - friction
+    return KernelSpec(
+        "accel", (Port("theta", s.theta, "joint angles"), Port("dtheta", s.dtheta, "joint velocities"),
+                  Port("u", s.u, "applied voltages"), Port("d", dist, "input disturbance"),
+                  Port("tauc", tau_c, "Coulomb friction"), Port("p", tuple(sym for sym, _ in d.values), "plant")),
+        (Port("ddtheta", y, "joint accelerations"),),
+        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01)", (LinearSolve(y, dyn.J, rhs),))
+
+
+def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
+    """rk4, measure and reference as CasADi functions (see the module docstring)."""
+    n, npar = d.n, len(d.values)
+    F = to_function(accel_spec(d))
+    x, f = ca.SX.sym("x", 2 * n), ca.SX.sym("f", 2 * n)
+    u, dist, tau_c, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "r"))
+    h, p = ca.SX.sym("h"), ca.SX.sym("p", npar)
+
+    def deriv(xs, fs):
+        acc = F(xs[:n], xs[n:], u, dist, tau_c, p)
+        return ca.vertcat(xs[n:], acc), ca.vertcat(fs[n:], r - GR_DAMPING * fs[n:] - fs[:n])
+
+    k1 = deriv(x, f)
+    k2 = deriv(x + h / 2 * k1[0], f + h / 2 * k1[1])
+    k3 = deriv(x + h / 2 * k2[0], f + h / 2 * k2[1])
+    k4 = deriv(x + h * k3[0], f + h * k3[1])
+    x_next = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+    f_next = f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, r, h, p], [x_next, f_next],
+                      ["x", "f", "u", "d", "tauc", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
+    nq, ndq, v, alpha = ca.SX.sym("nq", n), ca.SX.sym("ndq", n), ca.SX.sym("v", n), ca.SX.sym("alpha")
+    measure = ca.Function("measure", [x, nq, ndq, v, alpha], [x[:n] + nq, v + alpha * (x[n:] + ndq - v)],
+                          ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})
+    reference = ca.Function("reference", [f, r], [r - GR_DAMPING * f[n:] - f[:n]], ["f", "r"], ["ddyd"],
+                            {"cse": True})
+    return rk4, measure, reference
+
+
+@dataclass(frozen=True)
+class SimKernel:
+    """One printed simulator kernel: name, C parameters, registers, statements."""
+
+    name: str
+    c_args: tuple[str, ...]
+    registers: int
+    body: tuple[str, ...]
+    operations: int
+
+
+def sim_kernels(d: Derivation) -> tuple[SimKernel, ...]:
+    """The simulator kernels printed as double C (static functions of the loop)."""
+    out = []
+    for fn in sim_functions(d):
+        printed = print_function(fn, "c", "double")
+        args = tuple(f"const double {fn.name_in(i)}[{fn.size1_in(i)}]" for i in range(fn.n_in()))
+        args += tuple(f"double {fn.name_out(i)}[{fn.size1_out(i)}]" for i in range(fn.n_out()))
+        out.append(SimKernel(fn.name(), args, printed.registers, printed.statements, printed.operations))
+    return tuple(out)

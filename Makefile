@@ -19,6 +19,7 @@ generate: $(STAMP)
 	$(PY) -m derive simulate --out generated/glasgow_2link/sim --json generated/glasgow_2link/sim/metrics.json
 	$(PY) -m derive simulate --controllers npid,dobc,npid_unprotected --voltage-limits 2,3 --duration 15 \
 	    --out generated/glasgow_2link/sim/saturation
+	$(PY) -m derive sweep --out generated/glasgow_2link/sweep
 
 system-deps:
 	bash scripts/install-system-deps.sh

@@ -35,7 +35,7 @@ def test_generated_folder_is_up_to_date(tmp_path):
                    capture_output=True, cwd=ROOT)
     fresh = _tree(tmp_path / "glasgow_2link")
     committed = {k: v for k, v in _tree(ROOT / "generated" / "glasgow_2link").items()
-                 if not k.startswith("sim/")}  # simulation results: tests/test_simulate.py
+                 if not k.startswith(("sim/", "sweep/"))}  # simulation and sweep results: test_simulate, test_sweep
     problems = []
     for name in sorted(set(fresh) | set(committed)):
         a, b = committed.get(name, b"").decode(), fresh.get(name, b"").decode()

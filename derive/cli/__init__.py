@@ -23,6 +23,7 @@ COMMANDS = {
     "init": ("derive.cli.init", "write a starter arm file for a URDF (then: derive generate it)"),
     "fmu": ("derive.cli.fmu", "package a controller form as a co-simulation FMU (FMI 2.0 or 3.0)"),
     "tune": ("derive.cli.tune", "choose the smallest certified observer gain W for a speed box (SDP)"),
+    "sweep": ("derive.cli.sweep", "Monte-Carlo sweep of the closed loop over the arm file's [sweep] plants"),
 }
 
 

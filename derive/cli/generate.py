@@ -36,10 +36,10 @@ def run(args) -> int:
     notes: list[str] = []
     files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
                            sample_time=summary(d))
-    for note in notes:
-        print(f"derive: warning: {note}", file=sys.stderr)
     target = Path(args.out) / arm.name
     done = write_tree(target, files)   # only derive's previous files are replaced; sim/, build/ stay
+    for note in notes:
+        print(f"derive: warning: {note}", file=sys.stderr)
     kept = f" (kept what derive did not write: {', '.join(done.kept)})" if done.kept else ""
     print(f"derive: wrote {len(files)} files to {target}{kept}", file=sys.stderr)
     return 0

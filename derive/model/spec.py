@@ -57,6 +57,7 @@ from derive.model.singular import unmoved_joint
 from derive.model.urdf import urdf_chain
 
 __all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
+from derive.model.sweepspec import SweepSpec, parse_sweep
 
 DEFAULT_ARM = "glasgow_2link"
 ARMS_DIR = Path(__file__).parent / "arms"
@@ -108,6 +109,7 @@ class Arm:
     controller: Controller
     source: str
     simulation: SimSettings = field(default_factory=SimSettings, compare=False)
+    sweep: SweepSpec | None = field(default=None, compare=False)  # the [sweep] section, if any
     source_sha256: str = ""  # of the bytes validated (load_arm), recorded in MANIFEST.json
     gravity_direction: tuple[Fraction, ...] = (Fraction(0), Fraction(-1))
     spatial: Chain | None = None          # the chain of a DH or URDF arm (planar arms: None)
@@ -277,7 +279,8 @@ def load_arm(path: str | Path | None = None) -> Arm:
 # -- the schema ---------------------------------------------------------------------------
 
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
-            "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None}
+            "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None,
+            "sweep": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None}
@@ -377,11 +380,13 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
     controller = _controller(r, top.get("controller", _MISSING), n)
     simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
     r.problems.extend(sim_problems if n else [])
+    sweep, sweep_problems = parse_sweep(top.get("sweep"), n or 1)
+    r.problems.extend(sweep_problems if n else [])
     if r.problems:
         raise SpecError(printable(source), r.problems)
     arm = Arm(name=head.name, description=head.description, gravity=head.gravity, links=tuple(links),
               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
-              simulation=simulation, gravity_direction=head.direction or (
+              simulation=simulation, sweep=sweep, gravity_direction=head.direction or (
                   (Fraction(0), Fraction(-1)) if kind == "planar" else SPATIAL_DOWN),
               spatial=spatial, joint_friction=friction)
     _moves_inertia(r, arm)

@@ -1,0 +1,145 @@
+"""Monte-Carlo sweeps (issue 13 items 2, 3): the same results whatever the
+workers (1 or 2 local processes, a Dask cluster), the worst sample rerun by
+``derive simulate``, bad [sweep] input refused with one message and exit 2."""
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from derive.cli import main
+from derive.model.spec import resolve_arm_path
+
+SWEEP = """
+[simulation]
+pulse_period = 6.0
+start = [0.0, 1.0]
+
+[sweep]
+samples = 8
+seed = 11
+controllers = ["mpc", "dobc", "npid"]
+duration = 8.0
+
+[sweep.vary]
+payload_scale = { distribution = "uniform", low = 0.7, high = 1.3 }
+coulomb_friction = { distribution = "lognormal", median = 1.0, sigma = 0.5, low = 0.5, high = 2.0 }
+disturbance = { distribution = "normal", mean = 0.0, sd = 0.3, low = -0.5, high = 0.5 }
+link_mass = { distribution = "uniform", low = 0.9, high = 1.1 }
+velocity_noise = { distribution = "uniform", low = 0.0, high = 0.01 }
+
+[[sweep.criterion]]
+metric = "steady_state_error"
+max = 0.01
+"""
+
+
+def _arm(tmp_path, sweep: str = SWEEP):
+    text = resolve_arm_path(None).read_text()
+    text = text[: text.index("[sweep]")] if "[sweep]" in text else text
+    path = tmp_path / "arm.toml"
+    path.write_text(text + sweep)
+    return path
+
+
+def _sweep(tmp_path, arm, tag, *options):
+    out = tmp_path / f"out_{tag}"
+    js = tmp_path / f"{tag}.json"
+    assert main(["sweep", str(arm), "--out", str(out), "--json", str(js), *options]) == 0
+    return out, js.read_bytes()
+
+
+@pytest.fixture(scope="module")
+def sweeps(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sweep")
+    arm = _arm(tmp)
+    one = _sweep(tmp, arm, "one", "--workers", "1")
+    two = _sweep(tmp, arm, "two", "--workers", "2")
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        dask = _sweep(tmp, arm, "dask", "--dask", cluster.scheduler_address)
+    return tmp, one, two, dask
+
+
+def test_sweep_json_is_byte_identical_for_1_and_2_workers_and_a_dask_cluster(sweeps):
+    tmp, one, two, dask = sweeps
+    assert one[1] == two[1] == dask[1]
+    data = json.loads(one[1])
+    assert data["samples"] == 8 and set(data["results"]) == {"mpc", "dobc", "npid"}
+    fractions = {name: e["pass_fraction"]["all criteria"] for name, e in data["results"].items()}
+    assert fractions["mpc"] == 0.0 and fractions["dobc"] > 0.5, fractions  # the paper's claim, in small
+    for name in ("envelope.png", "histograms.png", "summary.md", "worst_dobc.toml"):
+        assert (one[0] / name).stat().st_size > 500, name
+    assert (one[0] / "envelope.png").read_bytes() == (two[0] / "envelope.png").read_bytes()
+
+
+def test_worst_sample_rerun_with_simulate_gives_the_reported_metric(sweeps, tmp_path):
+    tmp, one, _, _ = sweeps
+    data = json.loads(one[1])
+    for name in ("mpc", "dobc"):
+        worst = data["results"][name]["worst"]
+        js = tmp_path / f"{name}.json"
+        assert main(["simulate", str(one[0] / worst["file"]), "--controllers", name, "--out",
+                     str(tmp_path / name), "--json", str(js)]) == 0
+        links = json.loads(js.read_text())["controllers"][name]["links"]
+        value = max(link[worst["metric"]] for link in links)
+        assert value == pytest.approx(worst["value"], rel=1e-5), (name, value, worst)
+
+
+def test_sample_draws_depend_on_seed_and_index_only():
+    import derive
+    from derive.sim.sweep import sample_settings
+    import tomllib
+    from derive.model.sweepspec import parse_sweep
+
+    spec, problems = parse_sweep(tomllib.loads(SWEEP)["sweep"], 2)
+    assert not problems
+    base = derive.load_arm().simulation
+    a = sample_settings(base, spec, 5, 2)
+    assert a == sample_settings(base, spec, 5, 2) and a != sample_settings(base, spec, 6, 2)
+    settings, drawn = a
+    assert 0.7 <= drawn["payload_scale"] <= 1.3 and all(-0.5 <= v <= 0.5 for v in drawn["disturbance"])
+    assert all(0.5 <= v <= 2.0 for v in drawn["coulomb_friction"])
+    assert settings.coulomb_friction == tuple(c * f for c, f in zip(base.coulomb_friction, drawn["coulomb_friction"]))
+
+
+BAD = [
+    ("unknown distribution", 'payload_scale = { distribution = "gamma", low = 0.5, high = 1.5 }',
+     r"sweep\.vary\.payload_scale\.distribution: expected one of uniform, normal, lognormal, got 'gamma'"),
+    ("lower above upper", 'payload_scale = { distribution = "uniform", low = 1.5, high = 0.5 }',
+     r"sweep\.vary\.payload_scale\.low: expected at most high = 0\.5, got 1\.5"),
+    ("negative sd", 'position_noise = { distribution = "normal", mean = 0.0, sd = -0.1, low = 0.0 }',
+     r"sweep\.vary\.position_noise\.sd: expected a number >= 0, got -0\.1"),
+    ("unknown parameter", 'tip_colour = { distribution = "uniform", low = 0.0, high = 1.0 }',
+     r"sweep\.vary\.tip_colour: expected one of payload_scale"),
+]
+
+
+@pytest.mark.parametrize("case,line,message", BAD, ids=[b[0] for b in BAD])
+def test_bad_sweep_distribution_is_one_clear_error_exit_2_nothing_written(tmp_path, capsys, case, line, message):
+    arm = _arm(tmp_path, SWEEP.replace('payload_scale = { distribution = "uniform", low = 0.7, high = 1.3 }', line))
+    assert main(["sweep", str(arm), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+    assert err.count("derive: error") == 1 and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("sweep,options,message", [
+    (SWEEP.replace('metric = "steady_state_error"', 'metric = "settling_time"'), [],
+     r"sweep\.criterion\[1\]\.metric: expected one of rms_error, .*, got 'settling_time'"),
+    (SWEEP.replace("samples = 8", "samples = 0"), [], r"sweep\.samples: expected a whole number >= 1, got 0"),
+    (SWEEP, ["--samples", "0"], r"--samples: expected a whole number >= 1, got 0"),
+    (SWEEP.replace('"npid"]', '"pid"]'), [], r"sweep\.controllers: expected names of mpc, .*got \['pid'\]"),
+], ids=["unknown metric", "zero samples in file", "zero samples option", "unknown controller"])
+def test_bad_sweep_settings_are_one_clear_error_exit_2_nothing_written(tmp_path, capsys, sweep, options, message):
+    arm = _arm(tmp_path, sweep)
+    assert main(["sweep", str(arm), "--out", str(tmp_path / "out"), *options]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+    assert err.count("derive: error") == 1 and "Traceback" not in err
+    assert not (tmp_path / "out").exists()

@@ -94,7 +94,7 @@ def build(d) -> LoopBuild:
     W = np.array(d.W.tolist(), dtype=float)
     return LoopBuild(key=key, arm=d.arm.name, n=d.n, sources=tuple(sorted(sources.items())), library=library,
                      forms=tuple(FORMS), ctl_values=tuple(float(v) for _, v in d.values),
-                     limits=tuple(float(m.voltage_limit) if m.voltage_limit else 0.0 for m in d.arm.motors),
+                     limits=tuple(float(m.input_limit) if m.input_limit else 0.0 for m in d.arm.motors),
                      W=tuple(map(tuple, W)), Binv=tuple(1.0 / np.array(d.B.tolist(), dtype=float).diagonal()))
 
 
@@ -116,7 +116,7 @@ def load(b: LoopBuild) -> ctypes.CDLL:
     fn = getattr(lib, f"{b.arm}_sim_run")
     dp = ctypes.POINTER(ctypes.c_double)
     fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp, dp,
-                   dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
+                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
     fn.restype = ctypes.c_int
     _LOADED[b.key] = (tmp, lib)
     return lib
@@ -144,7 +144,7 @@ class RawRun:
     fail_input: np.ndarray
 
 
-def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, disturbance, u_clip, r: np.ndarray,
+def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous, disturbance, u_clip, r: np.ndarray,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
              substeps: int) -> RawRun:
     """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample)."""
@@ -156,7 +156,7 @@ def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, disturba
     out = {k: np.zeros((steps, n)) for k in ("theta", "dtheta", "yd", "u", "state", "filtered")}
     fail_step = ctypes.c_long(-1)
     fail_input = np.zeros(5 * n)
-    args = [f64(values), f64(coulomb), f64(disturbance), f64(u_clip), cp, f64(r),
+    args = [f64(values), f64(coulomb), f64(viscous), f64(disturbance), f64(u_clip), cp, f64(r),
             None if nq is None else f64(nq), None if ndq is None else f64(ndq)]
     keep = list(args)  # the arrays must outlive the call
     code = getattr(lib, f"{b.arm}_sim_run")(

@@ -5,11 +5,12 @@ reference outputs, as CasADi functions printed to C (derive.codegen.printing).
 All of the simulator's maths is here; the loop template (templates/sim/loop.c.jinja)
 only sequences the kernels and the generated controller's steps.
 
-* accel(theta, theta', u, d, tau_c, p) = theta'' with
-  J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) (eq. 12 plus friction),
+* accel(theta, theta', u, d, tau_c, b, p) = theta'' with
+  J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta' (eq. 12 plus the
+  plant's extra Coulomb and viscous friction),
   J and G of the Derivation in its parameter symbols p (the true plant's values
   at run time), solved numerically (CasADi's linear solve), never J^-1;
-* rk4(x, f, u, d, tau_c, r, h, p) -> (x', f'): one classical RK4 step of length h
+* rk4(x, f, u, d, tau_c, b, r, h, p) -> (x', f'): one classical RK4 step of length h
   of the plant x = (theta, theta') and the reference filter
   Gr(s) = 1 / (s^2 + 1.8 s + 1) with states f = (y_d, y_d') driven by r (section 5.2);
   u, d and r are held over the step (zero-order hold);
@@ -38,15 +39,18 @@ def accel_spec(d: Derivation) -> KernelSpec:
     s, dyn, n = d.dynamics.sym, d.dynamics, d.n
     dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
     tau_c = tuple(sp.Symbol(f"tauc{i + 1}", real=True) for i in range(n))
+    visc = tuple(sp.Symbol(f"bx{i + 1}", real=True) for i in range(n))
     y = tuple(sp.Symbol(f"ddtheta{i + 1}", real=True) for i in range(n))
-    friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) for c, v in zip(tau_c, s.dtheta)])
+    friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) + b * v
+                          for c, b, v in zip(tau_c, visc, s.dtheta)])
     rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - dyn.G - friction
     return KernelSpec(
         "accel", (Port("theta", s.theta, "joint angles"), Port("dtheta", s.dtheta, "joint velocities"),
                   Port("u", s.u, "applied voltages"), Port("d", dist, "input disturbance"),
-                  Port("tauc", tau_c, "Coulomb friction"), Port("p", tuple(sym for sym, _ in d.values), "plant")),
+                  Port("tauc", tau_c, "Coulomb friction"), Port("bx", visc, "extra viscous friction"),
+                  Port("p", tuple(sym for sym, _ in d.values), "plant")),
         (Port("ddtheta", y, "joint accelerations"),),
-        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01)", (LinearSolve(y, dyn.J, rhs),))
+        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'", (LinearSolve(y, dyn.J, rhs),))
 
 
 def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
@@ -54,11 +58,11 @@ def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
     n, npar = d.n, len(d.values)
     F = to_function(accel_spec(d))
     x, f = ca.SX.sym("x", 2 * n), ca.SX.sym("f", 2 * n)
-    u, dist, tau_c, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "r"))
+    u, dist, tau_c, visc, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "bx", "r"))
     h, p = ca.SX.sym("h"), ca.SX.sym("p", npar)
 
     def deriv(xs, fs):
-        acc = F(xs[:n], xs[n:], u, dist, tau_c, p)
+        acc = F(xs[:n], xs[n:], u, dist, tau_c, visc, p)
         return ca.vertcat(xs[n:], acc), ca.vertcat(fs[n:], r - GR_DAMPING * fs[n:] - fs[:n])
 
     k1 = deriv(x, f)
@@ -67,8 +71,8 @@ def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
     k4 = deriv(x + h * k3[0], f + h * k3[1])
     x_next = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
     f_next = f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, r, h, p], [x_next, f_next],
-                      ["x", "f", "u", "d", "tauc", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
+    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, h, p], [x_next, f_next],
+                      ["x", "f", "u", "d", "tauc", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
     nq, ndq, v, alpha = ca.SX.sym("nq", n), ca.SX.sym("ndq", n), ca.SX.sym("v", n), ca.SX.sym("alpha")
     measure = ca.Function("measure", [x, nq, ndq, v, alpha], [x[:n] + nq, v + alpha * (x[n:] + ndq - v)],
                           ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})

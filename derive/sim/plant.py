@@ -8,13 +8,13 @@ vector, the Python reference puts them into the SymPy matrices):
 
 * ``payload_scale`` multiplies the mass and inertia of the last link's point
   masses (a heavier payload of the same shape);
-* ``viscous_friction`` adds to each joint's viscous friction ``bv``;
+* ``viscous_friction`` is an extra viscous friction b theta' beside the model's;
 * ``link_mass_scale`` multiplies each link's mass and its inertia about the
   centre of mass (the same shape, heavier); ``torque_constant_scale``,
   ``voltage_constant_scale`` and ``resistance_scale`` the motors' constants.
 
 Coulomb friction tau_c tanh(theta'/0.01) and the disturbance d (eq. 12) enter the
-forward dynamics J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01).
+forward dynamics J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'.
 """
 from __future__ import annotations
 
@@ -33,43 +33,52 @@ SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
 @dataclass(frozen=True)
 class TruePlant:
     """The plant one run integrates: parameter values in the Derivation's order
-    (``d.values``), Coulomb friction [N m], disturbance d [V], voltage limits [V] (inf = none)."""
+    (``d.values``), Coulomb friction [N m], extra viscous friction [N m s/rad],
+    disturbance d [V], input limits (inf = none)."""
 
     values: tuple[float, ...]
     coulomb: tuple[float, ...]
+    viscous: tuple[float, ...]
     disturbance: tuple[float, ...]
     u_max: tuple[float, ...]
     changed: dict = field(default_factory=dict, compare=False)  # parameter name -> (arm value, plant value)
 
 
 def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
-    """The plant of ``d`` under settings ``s`` (a sweep sample is settings too)."""
+    """The plant of ``d`` under settings ``s`` (a sweep sample is settings too).
+
+    A factor applies to a parameter the arm file gives (a symbol of ``d.values``);
+    a value the file leaves to its default (a uniform rod's inertia m l^2/12) is
+    an expression in those symbols and follows them."""
     p = d.dynamics.params
     values = {sym: float(v) for sym, v in d.values}
     scale: dict[sp.Symbol, float] = {}
+
+    def put(entry, factor: float) -> None:
+        if isinstance(entry, sp.Symbol) and entry in values:
+            scale[entry] = factor
+
     last = d.n - 1
     for k, pm in enumerate(d.arm.point_masses):
         if pm.link == last:
-            scale[p.pm_mass[k]] = scale[p.pm_inertia[k]] = s.payload_scale
+            put(p.pm_mass[k], s.payload_scale)
+            put(p.pm_inertia[k], s.payload_scale)
     for i, f in enumerate(s.link_mass_scale):
-        scale[p.mass[i]] = scale[p.inertia[i]] = f
+        put(p.mass[i], f)
+        put(p.inertia[i], f)
     for syms, factors in ((p.Kt, s.torque_constant_scale), (p.Kv, s.voltage_constant_scale),
                           (p.R, s.resistance_scale)):
         for sym, f in zip(syms, factors):
-            scale[sym] = f
+            put(sym, f)
     changed = {}
     for sym, f in scale.items():
         if f != 1.0:
             changed[str(sym)] = (values[sym], values[sym] * f)
             values[sym] *= f
-    for i, extra in enumerate(s.viscous_friction):
-        if extra:
-            sym = p.friction[i]
-            changed[str(sym)] = (values[sym], values[sym] + extra)
-            values[sym] += extra
-    u_max = tuple(float(m.voltage_limit) if m.voltage_limit else math.inf for m in d.arm.motors)
+    u_max = tuple(float(m.input_limit) if m.input_limit else math.inf for m in d.arm.motors)
     return TruePlant(values=tuple(values[sym] for sym, _ in d.values), coulomb=tuple(s.coulomb_friction),
-                     disturbance=tuple(s.disturbance), u_max=u_max, changed=changed)
+                     viscous=tuple(s.viscous_friction), disturbance=tuple(s.disturbance), u_max=u_max,
+                     changed=changed)
 
 
 class Plant:
@@ -88,13 +97,14 @@ class Plant:
         self._p: list[float] = []
         self.B = np.array([float(b.xreplace(rep)) for b in dyn.B.diagonal()], dtype=float)
         self.coulomb = np.array(plant.coulomb)
+        self.viscous = np.array(plant.viscous)
         self.d = np.array(plant.disturbance)
         self.u_max = np.array(plant.u_max)
         self._n2 = n * n
 
     def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
         """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
-        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01), solved by numpy (LAPACK)."""
+        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
         n, rows = self.n, q.shape[0]
         vals = self._jg(*q.T, *dq.T, *self._p)
         J = np.empty((rows, n, n))
@@ -103,5 +113,5 @@ class Plant:
         G = np.empty((rows, n))
         for i in range(n):
             G[:, i] = vals[self._n2 + i]
-        rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH)
+        rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH) - self.viscous * dq
         return np.linalg.solve(J, rhs[..., None])[..., 0]

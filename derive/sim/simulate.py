@@ -157,7 +157,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
     runs = []
     for name in names:
         form, protected = VARIANTS[name]
-        limits = [float(m.voltage_limit) if (m.voltage_limit and protected) else 0.0 for m in d.arm.motors]
+        limits = [float(m.input_limit) if (m.input_limit and protected) else 0.0 for m in d.arm.motors]
         runs.append((name, form, backend.controller(form, limits)))
     steps = int(round(s.duration / dt))
     rng = np.random.default_rng(s.seed)
@@ -228,7 +228,7 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     state0 = None
     if name == "dobc_zero_init":  # z(0) = -W theta'_measured(0), as the reference sets it
         state0 = -(W @ (x0[n:] + (ndq[0] if ndq is not None else 0.0)))
-    raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.disturbance, plant.u_max,
+    raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance, plant.u_max,
                    pulses(s, n, steps), nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps)
     dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
     failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None

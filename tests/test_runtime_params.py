@@ -16,6 +16,7 @@ import pytest
 
 import derive
 from derive.codegen.kernels import ParamsMode
+from derive.codegen.plant import plant_view
 from derive.codegen.render import render
 from derive.codegen.views import arm_view
 
@@ -28,13 +29,14 @@ HEAVIER = "0.45"   # link 3's mass at run time, instead of the file's 0.3 kg
 def _emit(d, mode: ParamsMode, folder: Path) -> Path:
     """The C library and the Python module of one derivation (no self-test: not needed here)."""
     v = arm_view(d, "double", mode)
+    pl = plant_view(d, "double", mode)   # the Python module also holds the plant model
     a = d.arm.name
     (folder / "c").mkdir(parents=True)
     (folder / "python").mkdir()
     for name, template in ((f"c/{a}.h", "c/arm.h.jinja"), (f"c/{a}.c", "c/arm.c.jinja"),
                            (f"c/{a}_kernels.h", "c/kernels.h.jinja"), (f"c/{a}_kernels.c", "c/kernels.c.jinja"),
                            (f"python/{a}.py", "python/arm.py.jinja")):
-        (folder / name).write_text(render(template, v=v), encoding="utf-8")
+        (folder / name).write_text(render(template, v=v, pl=pl), encoding="utf-8")
     return folder
 
 

@@ -24,7 +24,8 @@ import numpy as np
 
 from derive.errors import DeriveError
 
-# form -> (state struct, state field) of the generated controller API; None: no state
+# form -> (state struct, state field) of the generated controller API; None: no state.
+# A new controller form adds its entry here (its <arm>_<form>_init/_step follow the npid/dobc API).
 FORMS: dict[str, tuple[str, str] | None] = {"mpc": None, "npid": ("npid_state", "int_e"), "dobc": ("dobc_state", "z")}
 FLAGS = ("-std=c99", "-O2", "-shared", "-fPIC")
 
@@ -148,6 +149,9 @@ def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
              substeps: int) -> RawRun:
     """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample)."""
+    if form not in b.forms:
+        raise DeriveError(f"compiled simulation: controller form {form!r} has no entry in "
+                          f"derive.sim.compiled.FORMS (known: {', '.join(b.forms)})")
     lib = load(b)
     n, steps = b.n, r.shape[0]
     f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731

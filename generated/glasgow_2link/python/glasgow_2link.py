@@ -4,7 +4,7 @@ Arm glasgow_2link (glasgow_2link.toml): Two-link horizontal direct-drive arm of 
 
 Controllers of W.-H. Chen's nonlinear disturbance observer based control and
 nonlinear PID, the same functions and state handling as the generated C:
-mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), npid_init/npid_step
+mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid_init/npid_step
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
@@ -600,6 +600,29 @@ def _kernel_dobc_init(theta, dtheta, yd, dyd):
     return z0
 
 
+def _kernel_dhat(dtheta, z):
+    """Disturbance estimate of the observer state (eq. 22); 8 operations."""
+    dhat = [0.0] * 2
+    a0 = 14.782608695652174
+    a1 = dtheta[0]
+    a2 = a0 * a1
+    a3 = z[0]
+    a0 = a0 * a3
+    a2 = a2 + a0
+    dhat[0] = a2
+    a2 = 113.63636363636364
+    a1 = a2 * a1
+    a0 = z[1]
+    a2 = a2 * a0
+    a1 = a1 + a2
+    a2 = 227.27272727272728
+    a0 = dtheta[1]
+    a2 = a2 * a0
+    a1 = a1 + a2
+    dhat[1] = a1
+    return dhat
+
+
 def _finite(*vectors):
     return all(_isfinite(x) for v in vectors for x in v)
 
@@ -676,6 +699,17 @@ def dobc_step(state, inp, dt):
         return ENONFINITE, None
     state.z = nxt
     return OK, np.array(u)
+
+
+def dobc_estimate(state, inp):
+    """(code, dhat): the estimate dhat = B^-1 (z + W theta') (eq. 22) of ``state``,
+    the one the next dobc_step from it uses; the state is not changed."""
+    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.z):
+        return ENONFINITE, None
+    (dhat,) = (_kernel_dhat(inp.dtheta, state.z),)
+    if not _finite(dhat):
+        return ENONFINITE, None
+    return OK, np.array(dhat)
 
 
 def _kernel_mass_matrix(theta):

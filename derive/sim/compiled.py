@@ -22,11 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from derive.codegen.forms import FORMS
 from derive.errors import DeriveError
 
-# form -> (state struct, state field) of the generated controller API; None: no state.
-# A new controller form adds its entry here (its <arm>_<form>_init/_step follow the npid/dobc API).
-FORMS: dict[str, tuple[str, str] | None] = {"mpc": None, "npid": ("npid_state", "int_e"), "dobc": ("dobc_state", "z")}
+
 FLAGS = ("-std=c99", "-O2", "-shared", "-fPIC")
 
 
@@ -67,7 +66,8 @@ def loop_sources(d) -> dict[str, str]:
     v = arm_view(d, "double", ParamsMode.RUNTIME)
     out = {f"{a}.h": render("c/arm.h.jinja", v=v), f"{a}.c": render("c/arm.c.jinja", v=v),
            f"{a}_kernels.h": render("c/kernels.h.jinja", v=v), f"{a}_kernels.c": render("c/kernels.c.jinja", v=v)}
-    forms = tuple(LoopForm(name, *(FORMS[name] or ("", ""))) for name in FORMS)
+    forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "")
+                  for f in FORMS.values())  # every form of the registry derive.codegen.forms
     out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
     return out
 
@@ -150,8 +150,8 @@ def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous,
              substeps: int) -> RawRun:
     """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample)."""
     if form not in b.forms:
-        raise DeriveError(f"compiled simulation: controller form {form!r} has no entry in "
-                          f"derive.sim.compiled.FORMS (known: {', '.join(b.forms)})")
+        raise DeriveError(f"compiled simulation: controller form {form!r} is not in the registry "
+                          f"derive.codegen.forms (known: {', '.join(b.forms)})")
     lib = load(b)
     n, steps = b.n, r.shape[0]
     f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731

@@ -102,7 +102,7 @@ def test_a_failing_controller_is_named_and_the_others_are_written(tmp_path):
     arm_file = tmp_path / "my3.toml"
     arm_file.write_text(MY3)
     out, js = tmp_path / "out", tmp_path / "m.json"
-    proc = subprocess.run([sys.executable, "-m", "derive", "simulate", str(arm_file), "--duration", "4",
+    proc = subprocess.run([sys.executable, "-m", "derive", "simulate", str(arm_file), "--duration", "4", "--force",
                            "--out", str(out), "--json", str(js)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1, proc.stderr
     assert "Traceback" not in proc.stderr

@@ -102,7 +102,7 @@ int main(int argc, char **argv)
     /* u of one npid step at the check state, with int_e from x0 */
     fill(&ins[0], x0);
     ns.int_e[0] = (real)x0[10]; ns.int_e[1] = (real)x0[11];
-    bad |= @ARM@_npid_step(&ns, &ins[0], dt, u);
+    bad |= @ARM@_npid_step(&ns, &ins[0], dt, u, NULL);
     printf("u %.17g %.17g\n", (double)u[0], (double)u[1]);
     /* varying inputs around x0 (the same rule as pinocchio_npid.cpp) */
     for (s = 0; s < NS; ++s) {
@@ -128,9 +128,9 @@ int main(int argc, char **argv)
     printf("ns %s %.3f\n", label, best / (double)iterations * 1e9);
 
     TIME("npid_step", (void)@ARM@_npid_init(&ns, &ins[0]),
-         bad |= @ARM@_npid_step(&ns, in, dt, u), (double)u[0] + (double)u[1])
+         bad |= @ARM@_npid_step(&ns, in, dt, u, NULL), (double)u[0] + (double)u[1])
     TIME("dobc_step", (void)@ARM@_dobc_init(&ds, &ins[0]),
-         bad |= @ARM@_dobc_step(&ds, in, dt, u), (double)u[0] + (double)u[1])
+         bad |= @ARM@_dobc_step(&ds, in, dt, u, NULL), (double)u[0] + (double)u[1])
     TIME("gains", (void)0,
          @ARM@_gains(in->theta, P, D, I), (double)P[0] + (double)D[3] + (double)I[1])
     printf("bad %d\n", bad);
@@ -241,7 +241,7 @@ def python_timings(d: Derivation, work: Path) -> tuple[dict[str, float], list[fl
     inp = m.Input(x[0:2], x[2:4], x[4:6], x[6:8], x[8:10])
     check = m.NpidState()
     check.int_e = x[10:12]
-    code, u = m.npid_step(check, inp, 1e-4)
+    code, u, _ = m.npid_step(check, inp, 1e-4)
     assert code == m.OK
     ns, ds = m.NpidState(), m.DobcState()
     m.npid_init(ns, inp)

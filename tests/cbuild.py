@@ -27,8 +27,12 @@ def library_sources(c_dir: Path, arm: str) -> list[Path]:
     return [c_dir / f"{arm}.c", c_dir / f"{arm}_kernels.c", c_dir / f"{arm}_plant.c"]
 
 
+UNSET = 0xA5A50000   # a clipped-joints mask no step writes (bits of joints 17 and up)
+
+
 class CLib:
-    """ctypes view of a generated controller library (structs are arrays of reals)."""
+    """ctypes view of a generated controller library (structs are arrays of reals);
+    ``clipped``: the clipped-joints mask of the last step (UNSET when it wrote none)."""
 
     def __init__(self, c_dir: Path, arm: str, n: int, real: str, runtime: bool, workdir: Path, np_count: int = 0):
         so = compile_c("gcc", library_sources(c_dir, arm), workdir / f"lib{arm}_{real}_{int(runtime)}.so",
@@ -38,6 +42,8 @@ class CLib:
         self.ct = ctypes.c_float if real == "float" else ctypes.c_double
         self.dtype = np.float32 if real == "float" else np.float64
         self.params = None
+        self.mask_t = ctypes.c_ulong if n <= 32 else ctypes.c_ulonglong
+        self.clipped = UNSET
         if runtime:
             self.params = (self.ct * (np_count + n))()
             self.fn("params_default")(self.params)
@@ -67,7 +73,9 @@ class CLib:
         args = [*self._p()] + ([state] if state is not None else []) + [self._arr(x)]
         if dt is not None:
             args.append(self.ct(dt))
-        code = self.fn(name)(*args, u)
+        mask = self.mask_t(UNSET)
+        code = self.fn(name)(*args, u, ctypes.byref(mask))
+        self.clipped = mask.value
         return code, np.array(u[:])
 
     def step(self, form: str, state_values, x, dt):

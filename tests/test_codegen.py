@@ -6,6 +6,7 @@ SymPy matrices), never between two outputs of the same printer alone.
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import subprocess
 import sys
@@ -141,7 +142,8 @@ class PyImpl:
         return np.concatenate([g.ravel() for g in self.m.gains(theta)])
 
     def mpc_step(self, x):
-        return self.m.mpc_step(self._inp(x))
+        code, u, self.clipped = self.m.mpc_step(self._inp(x))
+        return code, u
 
     def estimate(self, values, x):
         state = self.m.DobcState()
@@ -158,7 +160,7 @@ class PyImpl:
     def step(self, form, values, x, dt):
         state = self.m.NpidState() if form == "npid" else self.m.DobcState()
         setattr(state, "int_e" if form == "npid" else "z", list(values))
-        code, u = getattr(self.m, f"{form}_step")(state, self._inp(x), dt)
+        code, u, self.clipped = getattr(self.m, f"{form}_step")(state, self._inp(x), dt)
         return code, u, np.array(state.int_e if form == "npid" else state.z)
 
 
@@ -301,3 +303,90 @@ def test_nonfinite_input_returns_error_and_leaves_state_untouched(tmp_path, stat
         for dt in (0.0, -1e-3, bad):
             code, _, nxt = lib.step("npid", int_e, x, dt)
             assert code == 2 and list(nxt) == list(int_e)
+
+
+# -- the clipped-joints mask (issue 15.4) ------------------------------------------------------------
+def _mask(bits) -> int:
+    return sum(1 << i for i, b in enumerate(bits) if b)
+
+
+@pytest.mark.parametrize("impl", ["c", "python"])
+def test_a_step_reports_the_joints_it_clipped_and_none_when_unclipped(tmp_path, paper_ref, states, impl):
+    """Limits below / above the reference's unclipped u of each joint: the mask has exactly the
+    joints whose limit is below (bit i for joint i + 1), u is at that limit, 0 when none is."""
+    d = _derivation()
+    out = _generate(tmp_path, mode=ParamsMode.RUNTIME)
+    if impl == "c":
+        lib = CLib(out / "c", ARM, 2, "double", True, tmp_path, np_count=len(d.values))
+    else:
+        spec = importlib.util.spec_from_file_location(f"{ARM}_rt", out / "python" / f"{ARM}.py")
+        m = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(m)
+        params = m.Params()
+    x, int_e, z = states[0]
+    raw = {"mpc": paper_ref.mpc(x), "npid": paper_ref.npid(x, int_e), "dobc": paper_ref.dobc(x, z)}
+    for form, state in (("mpc", None), ("npid", int_e), ("dobc", z)):
+        a = [abs(float(v)) for v in raw[form]]
+        assert min(a) > 1e-3
+        for scale in ((0.5, 2.0), (2.0, 0.5), (0.5, 0.5), (2.0, 2.0), (0.0, 0.0)):
+            limits = [s * v for s, v in zip(scale, a)]
+            want = _mask(0 < s < 1 for s in scale)
+            if impl == "c":
+                lib.params[len(d.values):len(d.values) + 2] = limits
+                code, u = lib.mpc_step(x) if state is None else lib.step(form, state, x, 1e-3)[:2]
+                clipped = lib.clipped
+            else:
+                params.u_max = limits
+                inp = m.Input(*(x[i * 2:(i + 1) * 2] for i in range(5)))
+                if state is None:
+                    code, u, clipped = m.mpc_step(params, inp)
+                else:
+                    s = m.NpidState() if form == "npid" else m.DobcState()
+                    setattr(s, "int_e" if form == "npid" else "z", list(state))
+                    code, u, clipped = getattr(m, f"{form}_step")(params, s, inp, 1e-3)
+            assert (code, clipped) == (0, want), (form, scale)
+            for i in range(2):
+                if want >> i & 1:
+                    assert abs(u[i]) == limits[i], (form, scale, i)
+    bad = [float("nan")] + list(x[1:])
+    if impl == "c":
+        assert lib.step("npid", int_e, bad, 1e-3)[0] == 1 and lib.clipped == 0xA5A50000   # untouched
+    else:
+        assert m.npid_step(params, m.NpidState(), m.Input(*(bad[i * 2:(i + 1) * 2] for i in range(5))), 1e-3) \
+            == (1, None, None)
+
+
+def test_my3_at_its_24_volt_limits_reports_the_clipped_joints(tmp_path):
+    """The instance of the issue: the 3-link arm at rest, horizontal, 0.12 rad behind the
+    reference in joint 1 asks 26.9, 23.7 and 21.4 V (the reference): joint 1 is clipped to
+    its 24 V limit, the others are not; pointing up at the reference it asks for nothing."""
+    import math
+
+    from derive.codegen.files import python_files
+
+    d = derive.derive(derive.load_arm(ROOT / "tests" / "data" / "my3.toml"))
+    files = python_files(d, ParamsMode.BAKED)
+    write_tree(tmp_path / "my3", files | {"MANIFEST.json": json.dumps({"files": sorted(files)})})
+    spec = importlib.util.spec_from_file_location("my3_clip", tmp_path / "my3" / "python" / "my3.py")
+    m = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(m)
+    ref = Reference(d)
+    behind = [0.0] * 3 + [0.0] * 3 + [0.12, 0.0, 0.0] + [0.0] * 6
+    raw = [float(v) for v in ref.npid(behind, [0, 0, 0])]
+    assert 24 < raw[0] and max(raw[1:]) < 24 and _mask(ref.saturate(raw)[1]) == 0b001
+    code, u, clipped = m.npid_step(m.NpidState(), m.Input(*(behind[i * 3:(i + 1) * 3] for i in range(5))), 1e-3)
+    assert (code, clipped) == (0, 0b001) and u[0] == 24.0 and _rel(u[1:], raw[1:]) < 1e-12
+    up = [math.pi / 2, 0.0, 0.0] + [0.0] * 3 + [math.pi / 2, 0.0, 0.0] + [0.0] * 6
+    code, u, clipped = m.npid_step(m.NpidState(), m.Input(*(up[i * 3:(i + 1) * 3] for i in range(5))), 1e-3)
+    assert (code, clipped) == (0, 0) and max(abs(u)) < 1e-9
+
+
+def test_the_mask_type_holds_one_bit_per_joint():
+    from derive.codegen.views import mask_type
+    from derive.errors import SpecError
+
+    assert (mask_type(2), mask_type(32), mask_type(33), mask_type(64)) == (
+        "unsigned long", "unsigned long", "unsigned long long", "unsigned long long")
+    with pytest.raises(SpecError, match=r"link: expected at most 64 links \(one bit each in the clipped-joints "
+                                        r"mask\), got 65 links"):
+        mask_type(65, "big.toml")

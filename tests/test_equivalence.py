@@ -72,8 +72,8 @@ def _closed_loop(m, plant, dt: float, steps: int, zero_estimate: bool = False):
             assert m.dobc_init(ds, inp) == 0 and m.npid_init(ns, inp) == 0
             if zero_estimate:
                 ds.z = list(-(W @ x[2:]))  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
-        code, u = m.dobc_step(ds, inp, dt)
-        code2, u2 = m.npid_step(ns, inp, dt)
+        code, u, _ = m.dobc_step(ds, inp, dt)
+        code2, u2, _ = m.npid_step(ns, inp, dt)
         assert code == 0 and code2 == 0
         u_dobc.append(u)
         u_npid.append(u2)

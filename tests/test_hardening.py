@@ -143,7 +143,7 @@ def test_random_valid_arms_derive_generate_and_match_the_symbolic_model(tmp_path
         x = list(rng.uniform(-2, 2, 5 * n))
         inp = m.Input(*(x[i * n:(i + 1) * n] for i in range(5)))
         state = m.NpidState()
-        code, u = m.npid_step(state, inp, 1e-3)
+        code, u, _ = m.npid_step(state, inp, 1e-3)
         want = np.array([float(v) for v in ref.npid_step([0] * n, x, 1e-3)[0]])
         assert code == 0
         assert np.max(np.abs(u - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), (u, want)

@@ -16,6 +16,7 @@ from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
 from derive.control.ranges import check_ranges
+from derive.errors import Problem, SpecError
 from derive.model.spec import observer_parameters
 from derive.codegen.printing import c_literal, print_function, py_literal
 
@@ -66,12 +67,24 @@ class ArmView:
     py_params: tuple[tuple[str, str, str], ...]
     baked: tuple[str, ...]                      # "name = value unit (field)", the values a baked build holds
     u_max: tuple[str, ...]                      # C literals, 0 = no limit
+    mask: str                                   # C type of the clipped-joints bitmask
     py_u_max: tuple[str, ...]
     kernels: tuple[KernelView, ...]
     k1: str
     k2: str
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
     sample_notes: tuple[str, ...] = ()          # the largest sample time of each form (derive generate)
+
+
+def mask_type(n: int, source: str = "") -> str:
+    """The narrowest standard C99 unsigned type sure to hold one bit per joint; a
+    SpecError beyond 64 joints."""
+    if n <= 32:
+        return "unsigned long"          # at least 32 bits
+    if n <= 64:
+        return "unsigned long long"     # at least 64 bits
+    raise SpecError(source, [Problem("link", "at most 64 links (one bit each in the clipped-joints mask)",
+                                     f"{n} links")])
 
 
 def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
@@ -121,6 +134,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         params=tuple((name, c_literal(v, real), param_doc(docs[name])) for name, v in values),
         py_params=tuple((name, py_literal(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
+        mask=mask_type(d.n, arm.source),
         kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in kernel_specs(d, mode)),
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),

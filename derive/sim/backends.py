@@ -69,9 +69,9 @@ class PythonController:
 
     def step(self, x, dt: float) -> np.ndarray:
         if self.s is None:
-            code, u = self.m.mpc_step(self.params, self._inp(x))
+            code, u, _ = self.m.mpc_step(self.params, self._inp(x))
         else:
-            code, u = getattr(self.m, f"{self.form}_step")(self.params, self.s, self._inp(x), dt)
+            code, u, _ = getattr(self.m, f"{self.form}_step")(self.params, self.s, self._inp(x), dt)
         if code:
             raise ControllerError(f"{self.form}_step returned {code}", code)
         return u
@@ -113,9 +113,9 @@ class CController:
     def step(self, x, dt: float) -> np.ndarray:
         self.x[:] = list(x)
         if self.form == "mpc":
-            code = self._call("mpc_step", self.x, self.u)
+            code = self._call("mpc_step", self.x, self.u, None)          # None: no clipped mask
         else:
-            code = self._call(f"{self.form}_step", self.s, self.x, self.dt(dt), self.u)
+            code = self._call(f"{self.form}_step", self.s, self.x, self.dt(dt), self.u, None)
         if code:
             raise ControllerError(f"{self.form}_step returned {code}", code)
         return np.array(self.u[:])

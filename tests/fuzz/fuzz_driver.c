@@ -4,7 +4,8 @@
  * For ITER iterations it builds inputs from a small PRNG in several regimes (ordinary,
  * extreme: |x| up to 1e6 and 1e300, NaN, +-Inf, tiny dt, negative dt), calls every
  * entry point and checks the contract: a non-zero code leaves the state bit-for-bit
- * untouched and u unwritten; a zero code gives finite u and a finite state.
+ * untouched and u and the clipped mask unwritten; a zero code gives finite u, a finite
+ * state and a mask with bits of existing joints only (mpc_step takes a NULL mask).
  * Prints "N passed, N failed"; exits non-zero on any failure. */
 #include <math.h>
 #include <stdio.h>
@@ -76,6 +77,8 @@ int main(int argc, char **argv)
         T(npid_state) ns, ns0;
         T(dobc_state) ds, ds0;
         real u[NJ], u0[NJ], P_[NJ * NJ], D_[NJ * NJ], I_[NJ * NJ], dt;
+        const T(mask) unset = (T(mask))0xA5A5u << NJ;   /* bits no joint owns */
+        T(mask) clip = unset;
         int i, code, regime = (int)(next_u64() % 6), ok = 1;
         for (i = 0; i < NJ; ++i) { /* mostly ordinary values, some fields in another regime */
             in.theta[i] = sample((next_u64() % 4 == 0) ? regime : 0);
@@ -91,23 +94,24 @@ int main(int argc, char **argv)
         ns0 = ns;
         ds0 = ds;
         FN(gains)(P in.theta, P_, D_, I_);
-        code = FN(npid_step)(P &ns, &in, dt, u);
+        code = FN(npid_step)(P &ns, &in, dt, u, &clip);
         if (code != 0) {
-            ok &= memcmp(&ns, &ns0, sizeof ns) == 0 && memcmp(u, u0, sizeof u) == 0;
+            ok &= memcmp(&ns, &ns0, sizeof ns) == 0 && memcmp(u, u0, sizeof u) == 0 && clip == unset;
             ++errors;
         } else {
-            ok &= finite_all(u, NJ) && finite_all(ns.int_e, NJ);
+            ok &= finite_all(u, NJ) && finite_all(ns.int_e, NJ) && (clip >> NJ) == 0;
         }
         memcpy(u, u0, sizeof u);
-        code = FN(dobc_step)(P &ds, &in, dt, u);
+        clip = unset;
+        code = FN(dobc_step)(P &ds, &in, dt, u, &clip);
         if (code != 0) {
-            ok &= memcmp(&ds, &ds0, sizeof ds) == 0 && memcmp(u, u0, sizeof u) == 0;
+            ok &= memcmp(&ds, &ds0, sizeof ds) == 0 && memcmp(u, u0, sizeof u) == 0 && clip == unset;
             ++errors;
         } else {
-            ok &= finite_all(u, NJ) && finite_all(ds.z, NJ);
+            ok &= finite_all(u, NJ) && finite_all(ds.z, NJ) && (clip >> NJ) == 0;
         }
         memcpy(u, u0, sizeof u);
-        code = FN(mpc_step)(P &in, u);
+        code = FN(mpc_step)(P &in, u, NULL);
         ok &= code != 0 ? memcmp(u, u0, sizeof u) == 0 : finite_all(u, NJ);
         ds0 = ds;
         code = FN(dobc_init)(P &ds, &in);

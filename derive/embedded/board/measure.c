@@ -93,12 +93,12 @@ static void make_inputs(void)
 /* Adapters with one signature, so that every timed loop is the same code. */
 static int npid_step(void *s, const input_t *in, real dt, real u[])
 {
-    return F(npid_step)((npid_state_t *)s, in, dt, u);
+    return F(npid_step)((npid_state_t *)s, in, dt, u, NULL);
 }
 
 static int dobc_step(void *s, const input_t *in, real dt, real u[])
 {
-    return F(dobc_step)((dobc_state_t *)s, in, dt, u);
+    return F(dobc_step)((dobc_state_t *)s, in, dt, u, NULL);
 }
 
 static int noop_step(void *s, const input_t *in, real dt, real u[])

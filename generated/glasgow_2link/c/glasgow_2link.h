@@ -20,7 +20,9 @@
  * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
  * ms.
  * Voltage limits (0 = none): u is clipped to [-u_max, u_max]; the observer is
- * fed the clipped u and the PID integrator of a clipped joint is held.
+ * fed the clipped u and the PID integrator of a clipped joint is held. Every
+ * step reports the joints it clipped in *clipped (a glasgow_2link_mask; NULL: not
+ * wanted): bit i set (1 << i) when joint i + 1 was clipped, 0 when none was.
  * A step returns GLASGOW_2LINK_ENONFINITE for a non-finite input, state or result
  * and GLASGOW_2LINK_EDT for dt that is not finite and > 0, and then leaves its
  * state and u untouched. No allocation, no globals written: reentrant.
@@ -69,6 +71,9 @@ enum { GLASGOW_2LINK_OK = 0, GLASGOW_2LINK_ENONFINITE = 1, GLASGOW_2LINK_EDT = 2
 
 typedef double glasgow_2link_real;
 
+/* The joints a step clipped to their voltage limit: bit i for joint i + 1. */
+typedef unsigned long glasgow_2link_mask;
+
 /* Controller input at one sample: measured joint angles and velocities and the
  * reference y_d with its first two derivatives (y = C theta, eq. 13). */
 typedef struct {
@@ -85,16 +90,21 @@ typedef struct { glasgow_2link_real z[2]; } glasgow_2link_dobc_state;
 /* Row-major n x n gains at theta (eq. 35-37). */
 void glasgow_2link_gains(const glasgow_2link_real theta[2], glasgow_2link_real P[4], glasgow_2link_real D[4], glasgow_2link_real I[4]);
 
+/* Each step writes u and, unless clipped is NULL, the clipped joints; on an
+ * error it writes neither. */
+
 /* Predictive law u* alone (eq. 15); no state. */
-int glasgow_2link_mpc_step(const glasgow_2link_input *in, glasgow_2link_real u[2]);
+int glasgow_2link_mpc_step(const glasgow_2link_input *in, glasgow_2link_real u[2], glasgow_2link_mask *clipped);
 
 /* Zero the integral: the PID form equals the composite law from t = 0. */
 int glasgow_2link_npid_init(glasgow_2link_npid_state *s, const glasgow_2link_input *in);
-int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2]);
+int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2],
+    glasgow_2link_mask *clipped);
 
 /* z(0) = B dhat(0) - W theta'(0) with the derived dhat(0): equal to the NPID form. */
 int glasgow_2link_dobc_init(glasgow_2link_dobc_state *s, const glasgow_2link_input *in);
-int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2]);
+int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2],
+    glasgow_2link_mask *clipped);
 
 /* The disturbance estimate dhat = B^-1 (z + W theta') (eq. 22) of state s at input
  * in: the estimate the next dobc_step from s uses; s is not changed. */

@@ -62,7 +62,7 @@ def _outputs_py(m, params, x: np.ndarray) -> np.ndarray:
     for form, State in (("npid", m.NpidState), ("dobc", m.DobcState)):
         s = State()
         getattr(m, f"{form}_init")(*p, s, inp)
-        code, u = getattr(m, f"{form}_step")(*p, s, inp, 1e-3)
+        code, u, _ = getattr(m, f"{form}_step")(*p, s, inp, 1e-3)
         assert code == m.OK
         out += [u, s.int_e if form == "npid" else s.z]
     return np.concatenate([np.ravel(np.asarray(o, float)) for o in out])

@@ -88,7 +88,7 @@ _GENERATED_PATTERN = re.compile(
 # <arm>_real, <arm>_kernel_gains, <ARM>_KERNELS_H, files <arm>_kernels.c, target <arm>_selftest,
 # the plant's <arm>_mass_matrix, <arm>_plant.c, target <arm>_plant_selftest.
 GENERATED_SUFFIXES = frozenset("""
-real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state
+real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state mask
 dobc_init dobc_step kernels kernel_gains kernel_mpc kernel_npid kernel_dobc kernel_observer
 kernel_dobc_init dobc_estimate kernel_dhat selftest h n np ok enonfinite edt kernels_h
 mass_matrix bias gravity input_matrix forward_dynamics plant plant_h plant_selftest plant_kernel_mass_matrix

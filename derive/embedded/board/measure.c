@@ -211,8 +211,8 @@ int main(void)
         for (k = 0; k <= NINPUTS; ++k) {
             const input_t *in = k < NINPUTS ? &inputs[k] : &far;
             paint();
-            if (f == 0) codes |= F(npid_step)(&ns, in, dt, u);
-            if (f == 1) codes |= F(dobc_step)(&ds, in, dt, u);
+            if (f == 0) codes |= F(npid_step)(&ns, in, dt, u, NULL);
+            if (f == 1) codes |= F(dobc_step)(&ds, in, dt, u, NULL);
             if (f == 2) F(gains)(in->theta, g, g + NJ * NJ, g + 2 * NJ * NJ);
             used = used_below(top);
             if (k < NINPUTS && used > worst) worst = used;

@@ -220,7 +220,7 @@ def test_full_w_is_synthesised_and_runs_through_the_generated_code(tmp_path):
     x = [0.3, -0.7, 0.1, 0.2, 1.1, -0.4, 0.5, 0.0, 0.2, -0.3]
     state = mod.DobcState()
     state.z = [0.2, -0.1]
-    code, u = mod.dobc_step(mod.Params(), state, mod.Input(x[0:2], x[2:4], x[4:6], x[6:8], x[8:10]), 1e-3)
+    code, u, _ = mod.dobc_step(mod.Params(), state, mod.Input(x[0:2], x[2:4], x[4:6], x[6:8], x[8:10]), 1e-3)
     ru, rz = ref.dobc_step([0.2, -0.1], x, 1e-3)
     assert code == 0
     assert np.allclose(u, [float(v) for v in ru], rtol=1e-12, atol=1e-12)

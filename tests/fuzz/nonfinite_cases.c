@@ -69,14 +69,14 @@ static void all_refuse(const char *what, T(input) in, real dt, int code_in, int 
     ns0 = ns;
     ds0 = ds;
     snprintf(label, sizeof label, "npid_step, %s", what);
-    expect(label, T(npid_step)(P &ns, &in, dt, u) == code_dt && !memcmp(&ns, &ns0, sizeof ns)
+    expect(label, T(npid_step)(P &ns, &in, dt, u, NULL) == code_dt && !memcmp(&ns, &ns0, sizeof ns)
                   && !memcmp(u, u0, sizeof u));
     snprintf(label, sizeof label, "dobc_step, %s", what);
-    expect(label, T(dobc_step)(P &ds, &in, dt, u) == code_dt && !memcmp(&ds, &ds0, sizeof ds)
+    expect(label, T(dobc_step)(P &ds, &in, dt, u, NULL) == code_dt && !memcmp(&ds, &ds0, sizeof ds)
                   && !memcmp(u, u0, sizeof u));
     if (code_in != -1) {
         snprintf(label, sizeof label, "mpc_step, %s", what);
-        expect(label, T(mpc_step)(P &in, u) == code_in && !memcmp(u, u0, sizeof u));
+        expect(label, T(mpc_step)(P &in, u, NULL) == code_in && !memcmp(u, u0, sizeof u));
     }
     if (code_in != -1 && strstr(what, "overflows") == NULL) { /* z(0) is linear in theta', no overflow */
         snprintf(label, sizeof label, "dobc_init, %s", what);
@@ -125,20 +125,20 @@ int main(void)
     T(npid_init)(P &ns, &in);
     ns.int_e[0] = nan_;
     ns0 = ns;
-    expect("npid_step, int_e[0] = NaN", T(npid_step)(P &ns, &in, dt, u) == C(ENONFINITE)
+    expect("npid_step, int_e[0] = NaN", T(npid_step)(P &ns, &in, dt, u, NULL) == C(ENONFINITE)
            && !memcmp(&ns, &ns0, sizeof ns) && !memcmp(u, u0, sizeof u));
     T(dobc_init)(P &ds, &in);
     ds.z[NJ - 1] = -inf;
     ds0 = ds;
-    expect("dobc_step, z[n-1] = -Inf", T(dobc_step)(P &ds, &in, dt, u) == C(ENONFINITE)
+    expect("dobc_step, z[n-1] = -Inf", T(dobc_step)(P &ds, &in, dt, u, NULL) == C(ENONFINITE)
            && !memcmp(&ds, &ds0, sizeof ds) && !memcmp(u, u0, sizeof u));
 
     /* and the ordinary case still succeeds with finite results */
     T(npid_init)(P &ns, &in);
     T(dobc_init)(P &ds, &in);
-    expect("npid_step, ordinary input", T(npid_step)(P &ns, &in, dt, u) == C(OK) && isfinite(u[0]));
-    expect("dobc_step, ordinary input", T(dobc_step)(P &ds, &in, dt, u) == C(OK) && isfinite(u[0]));
-    expect("mpc_step, ordinary input", T(mpc_step)(P &in, u) == C(OK) && isfinite(u[0]));
+    expect("npid_step, ordinary input", T(npid_step)(P &ns, &in, dt, u, NULL) == C(OK) && isfinite(u[0]));
+    expect("dobc_step, ordinary input", T(dobc_step)(P &ds, &in, dt, u, NULL) == C(OK) && isfinite(u[0]));
+    expect("mpc_step, ordinary input", T(mpc_step)(P &in, u, NULL) == C(OK) && isfinite(u[0]));
 
     printf("%d cases, %d failed\n", cases, failed);
     return failed != 0;

@@ -29,8 +29,11 @@ system-deps:
 embedded: $(STAMP) system-deps
 	$(PY) -m derive embedded
 
+# Both cores of the CI machine (pytest-xdist); a module's tests stay on one worker so its
+# module-scoped fixtures (a generated and compiled arm) are built once.
+TEST_WORKERS ?= 2
 test: $(STAMP) system-deps
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # The property tests (hypothesis) with FUZZ_FACTOR times the examples of `make test` and
 # a new random seed each run (printed; `make fuzz SEED=n` repeats a run). `make test`

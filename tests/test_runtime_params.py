@@ -27,7 +27,8 @@ HEAVIER = "0.45"   # link 3's mass at run time, instead of the file's 0.3 kg
 
 
 def _emit(d, mode: ParamsMode, folder: Path) -> Path:
-    """The C library and the Python module of one derivation (no self-test: not needed here)."""
+    """The C library (controller and plant, as tests.cbuild.CLib links them) and the Python
+    module of one derivation (no self-test: not needed here)."""
     v = arm_view(d, "double", mode)
     pl = plant_view(d, "double", mode)   # the Python module also holds the plant model
     a = d.arm.name
@@ -35,6 +36,7 @@ def _emit(d, mode: ParamsMode, folder: Path) -> Path:
     (folder / "python").mkdir()
     for name, template in ((f"c/{a}.h", "c/arm.h.jinja"), (f"c/{a}.c", "c/arm.c.jinja"),
                            (f"c/{a}_kernels.h", "c/kernels.h.jinja"), (f"c/{a}_kernels.c", "c/kernels.c.jinja"),
+                           (f"c/{a}_plant.h", "c/plant.h.jinja"), (f"c/{a}_plant.c", "c/plant.c.jinja"),
                            (f"python/{a}.py", "python/arm.py.jinja")):
         (folder / name).write_text(render(template, v=v, pl=pl), encoding="utf-8")
     return folder

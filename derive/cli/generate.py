@@ -28,6 +28,9 @@ def run(args) -> int:
 
     arm = load_arm(args.arm)
     d = derive(arm)
+    from derive.control.ranges import check_ranges
+
+    check_ranges(d, args.real)   # an arm the chosen real type cannot hold is refused before any warning
     report_warnings(d)
     from derive.control.sampling import summary, too_slow
 

@@ -251,7 +251,9 @@ def run(args) -> int:
         text = render_text(d, exact=args.exact, unicode=encoding.startswith("utf"))
     sys.stdout.write(text if text.endswith("\n") else text + "\n")
     if not args.latex:
+        import textwrap
+
         from derive.control.sampling import summary
 
-        sys.stdout.write(f"\nSample time: {summary(d)}\n")
+        sys.stdout.write("\n" + textwrap.fill(f"Sample time: {summary(d)}", 100, subsequent_indent="  ") + "\n")
     return 0

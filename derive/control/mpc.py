@@ -18,6 +18,7 @@ import sympy as sp
 from derive.dynamics.planar import Dynamics
 from derive.model.spec import T1_SYMBOL as T1
 from derive.model.spec import T2_SYMBOL as T2
+from derive.summary import compact_repr
 
 
 def tbar(i: int, j: int, t1: sp.Expr = T1, t2: sp.Expr = T2) -> sp.Expr:
@@ -32,6 +33,7 @@ def gains(t1: sp.Expr = T1, t2: sp.Expr = T2) -> tuple[sp.Expr, sp.Expr]:
             sp.factor(tbar(3, 2, t1, t2) / tbar(3, 3, t1, t2)))
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Mpc:
     """Predictive controller in the arm's parameters T1, T2 (shapes for n joints).

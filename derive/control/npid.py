@@ -27,8 +27,10 @@ from derive.dynamics.planar import Dynamics
 from derive.errors import DerivationError
 from derive.control.mpc import Mpc
 from derive.control.observer import Observer
+from derive.summary import compact_repr
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Npid:
     """Composite and PID forms (shapes for n joints, in gain symbols).

@@ -20,6 +20,7 @@ import sympy as sp
 
 from derive.dynamics.planar import Dynamics
 from derive.model.spec import w_symbols as spec_w_symbols
+from derive.summary import compact_repr
 
 
 def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
@@ -45,6 +46,7 @@ def inverse_or_product(W: sp.Matrix, J: sp.Matrix):
     return sp.MatMul(W, sp.Inverse(J), evaluate=False)
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Observer:
     """Observer in the gain symbols w (shapes for n joints).

@@ -19,8 +19,10 @@ from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
 from derive.model.spec import Arm
+from derive.summary import compact_repr
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Derivation:
     """The single intermediate representation of an arm's controller.

@@ -26,6 +26,7 @@ from derive.dynamics.identities import matrix_is_zero
 from derive.model.actuators import terms
 from derive.model.spec import Arm
 from derive.model.symbols import JointSymbols, ParamSymbols
+from derive.summary import compact_repr
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,7 @@ class Body:
     Io: sp.Expr  # moment of inertia about the joint
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Dynamics:
     """Symbolic dynamics in the parameter symbols of ``params`` (shapes for n joints).

@@ -16,7 +16,7 @@ from derive.cli import main
 from derive.control.sampling import MARGIN, limits, sample_limit
 from derive.errors import DeriveError
 from derive.sim.backends import Backend
-from derive.sim.simulate import Plant, run
+from derive.sim.simulate import Plant, run, true_plant
 
 SMALL_ARM = Path(__file__).resolve().parent / "data" / "f6_small_arm.toml"
 
@@ -71,7 +71,7 @@ def _simulate(loop, form: str, dt: float, duration: float, substeps: int = 4) ->
     settings = replace(arm.simulation, sample_time=dt, duration=duration, substeps=substeps)
     try:
         with np.errstate(all="ignore"):
-            tr = run(d, backend, Plant(arm, settings), settings, form)
+            tr = run(d, backend, Plant(d, true_plant(d, settings)), settings, form)
     except (DeriveError, FloatingPointError, np.linalg.LinAlgError, OverflowError):
         return np.inf
     e = np.abs(tr.yd - tr.theta)[2 * len(tr.t) // 3:]

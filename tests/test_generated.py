@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import difflib
+import io
 import json
 import os
 import subprocess
@@ -210,3 +211,23 @@ def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
         assert not (ro / "out").exists()
     finally:
         shutil.rmtree(base)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_generate_shows_its_stages_on_a_terminal_and_nothing_when_redirected(tmp_path, monkeypatch):
+    """Issue 13 item 4: a progress bar on generate (tqdm), silent when standard error is redirected."""
+    from derive.cli import main
+    from derive.codegen.files import GENERATE_STAGES
+
+    for stream, shown in ((_Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        assert main(["generate", "--out", str(tmp_path / str(shown))]) == 0
+        text = stream.getvalue()
+        bar = [name for name in ("derivation", "sample-time limits", *GENERATE_STAGES) if name in text]
+        assert bar == (["derivation", "sample-time limits", *GENERATE_STAGES] if shown else []), text
+        assert f"{2 + len(GENERATE_STAGES)}/{2 + len(GENERATE_STAGES)}" in text if shown else "%|" not in text
+        assert "derive: wrote" in text

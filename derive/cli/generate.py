@@ -26,19 +26,36 @@ def run(args) -> int:
     from derive.control.pipeline import derive
     from derive.model.spec import load_arm
 
-    arm = load_arm(args.arm)
-    d = derive(arm)
+    from derive.codegen.files import GENERATE_STAGES
     from derive.control.ranges import check_ranges
-
-    check_ranges(d, args.real)   # an arm the chosen real type cannot hold is refused before any warning
-    report_warnings(d)
     from derive.control.sampling import summary, too_slow
+    from derive.progress import progress
 
+    arm = load_arm(args.arm)
+    with progress(total=2 + len(GENERATE_STAGES), desc=f"generate {arm.name}", unit="stage") as bar:
+        bar.set_postfix_str("derivation")
+        d = derive(arm)
+        check_ranges(d, args.real)   # an arm the chosen real type cannot hold is refused before any warning
+        bar.update()
+        bar.set_postfix_str("sample-time limits")
+        sentence = summary(d)
+        bar.update()
+
+        started = 0
+
+        def stage(name: str) -> None:
+            nonlocal started
+            bar.update(1 if started else 0)   # the previous stage is done
+            started += 1
+            bar.set_postfix_str(name)
+
+        notes: list[str] = []
+        files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
+                               sample_time=sentence, stage=stage)
+        bar.update()
+    report_warnings(d)
     for text in too_slow(d, arm.simulation.sample_time):
         print(f"derive: warning: simulation.sample_time of {arm.name}: {text}", file=sys.stderr)
-    notes: list[str] = []
-    files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
-                           sample_time=summary(d))
     target = Path(args.out) / arm.name
     done = write_tree(target, files)   # only derive's previous files are replaced; sim/, build/ stay
     for note in notes:

@@ -459,3 +459,29 @@ def test_default_step_is_the_arm_sample_time_unless_overridden(paper):
         _, _, top = controller_sources(paper, FmuOptions(form="mpc", sample_time=override), "derive test")
         step = re.search(r'stepSize="([^"]+)"', top["modelDescription.xml"]).group(1)
         assert float(step) == want
+
+
+def test_plant_fmu_applies_every_mismatch_of_the_simulation_section(tmp_path):
+    """The plant FMU is derive simulate's true plant (derive.sim.plant.true_plant): link
+    masses, motor constants and payload all scaled, not only the payload."""
+    from dataclasses import replace
+
+    from derive.fmu import plant_fmu
+    from derive.sim.plant import true_plant
+
+    arm = derive.load_arm()
+    s = replace(arm.simulation, link_mass_scale=(1.25, 0.5), torque_constant_scale=(0.9, 1.1),
+                voltage_constant_scale=(1.05, 0.95), resistance_scale=(1.5, 0.75), payload_scale=1.4)
+    d = derive.derive(replace(arm, simulation=s))
+    name, data = plant_fmu(d, 3)
+    path = tmp_path / name
+    path.write_bytes(data)
+    assert validate_fmu(str(path)) == []
+    starts = {v.name: float(v.start) for v in read_model_description(str(path)).modelVariables
+              if v.causality == "parameter"}
+    want = dict(zip((str(sym) for sym, _ in d.values), true_plant(d, s).values))
+    for key, factor in (("m1", 1.25), ("m2", 0.5), ("Kt1", 0.9), ("Kt2", 1.1), ("Kv1", 1.05), ("Ra1", 1.5),
+                        ("Ra2", 0.75), ("mp2", 1.4)):
+        arm_value = float(dict(d.values)[next(sym for sym, _ in d.values if str(sym) == key)])
+        assert starts[key] == want[key] == pytest.approx(arm_value * factor, rel=1e-15), key
+    assert "T1" not in starts and "w1" not in starts   # controller parameters are not the plant's

@@ -262,20 +262,22 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
     return tuple(out), tuple(units[k] for k in sorted(units)), tuple(defaults)
 
 
-def plant_view(arm, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
-    """The view of the plant FMU of ``arm``'s ``[simulation]`` section (derive.fmu.plant)."""
-    from derive.fmu.plant import amplitude_rad, plant_dynamics, plant_kernels
+def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
+    """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
+    from derive.fmu.plant import amplitude_rad, plant_kernels, plant_parameters
 
+    arm = d.arm
     s = arm.simulation
-    dyn, values = plant_dynamics(arm, s)
+    values, plant = plant_parameters(d, s)
     known = {str(p.symbol): p for p in arm.parameters}
     params = []
     for sym, value in values:
         p = known.get(str(sym))
         what = f"{p.doc} (from {p.field})" if p is not None else str(sym)
-        params.append((str(sym), value, p.unit if p is not None else "",
-                       f"{what} of the simulated arm; the last link's point masses are "
-                       f"simulation.payload_scale = {s.payload_scale!r} times the arm file's"))
+        mismatch = plant.changed.get(str(sym))
+        note = (f"; the arm file's {mismatch[0]!r} with the [simulation] mismatch applied" if mismatch is not None
+                else "")
+        params.append((str(sym), value, p.unit if p is not None else "", f"{what} of the simulated arm{note}"))
     limits = tuple(float(m.input_limit) if m.input_limit else 0.0 for m in arm.motors)
     vectors = (
         ("coulomb", "N m", "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/0.01) (simulation.coulomb_friction)",
@@ -306,6 +308,6 @@ def plant_view(arm, fmi: int, *, token: str, tool: str, sample_time: float, sour
         errors=(("PLANT_ENONFINITE", "a non-finite input u or plant state"),), ok="PLANT_OK", includes=(),
         core="fmu/plant.c.jinja",
         summary=f"simulation plant of arm {arm.name}: RK4, {s.substeps} substeps per step, u held",
-        real_type="Float64", n=arm.n, np=len(values), kernels=plant_kernels(dyn, tuple(v[0] for v in values),
-                                                                              s.substeps),
+        real_type="Float64", n=arm.n, np=len(values), kernels=plant_kernels(d, tuple(v[0] for v in values),
+                                                                            s.substeps),
         defaults=defaults, substeps=s.substeps)

@@ -209,7 +209,7 @@ def plant_fmu(d: Derivation, fmi: int, cc: str = "cc", arm_bytes: bytes | None =
     model = f"{d.arm.name}_plant"
     glue = f"{model}_fmu.c"
     sample = sample_time if sample_time is not None else d.arm.simulation.sample_time
-    sources, top = _render(fmi, lambda token: plant_view(d.arm, fmi, token=token, tool=tool, sample_time=sample,
+    sources, top = _render(fmi, lambda token: plant_view(d, fmi, token=token, tool=tool, sample_time=sample,
                                                           sources=(glue,)), glue, {})
     sources.update(fmi_headers(fmi))
     return _package(d, model, fmi, sources, top, cc, arm_bytes,

@@ -34,8 +34,18 @@ from derive.sim.plant import SMOOTH
 GR_DAMPING = 1.8  # Gr(s) = 1 / (s^2 + 1.8 s + 1), section 5.2
 
 
-def accel_spec(d: Derivation) -> KernelSpec:
-    """Forward dynamics of the true plant with Coulomb friction, in parameter symbols."""
+def plant_symbols(d: Derivation) -> tuple[sp.Symbol, ...]:
+    """The parameter symbols J, G and B use, in the order of ``d.values`` (the plant's
+    parameters: the controller's T1, T2, w are not among them)."""
+    used: set[sp.Symbol] = set()
+    for m in (d.dynamics.J, d.dynamics.G, d.dynamics.B):
+        used |= m.free_symbols
+    return tuple(sym for sym, _ in d.values if sym in used)
+
+
+def accel_spec(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> KernelSpec:
+    """Forward dynamics of the true plant with Coulomb friction, in parameter
+    symbols ``params`` (default: every symbol of ``d.values``, the compiled loop's vector)."""
     s, dyn, n = d.dynamics.sym, d.dynamics, d.n
     dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
     tau_c = tuple(sp.Symbol(f"tauc{i + 1}", real=True) for i in range(n))
@@ -44,19 +54,22 @@ def accel_spec(d: Derivation) -> KernelSpec:
     friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) + b * v
                           for c, b, v in zip(tau_c, visc, s.dtheta)])
     rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - dyn.G - friction
+    params = tuple(sym for sym, _ in d.values) if params is None else params
     return KernelSpec(
         "accel", (Port("theta", s.theta, "joint angles"), Port("dtheta", s.dtheta, "joint velocities"),
                   Port("u", s.u, "applied voltages"), Port("d", dist, "input disturbance"),
                   Port("tauc", tau_c, "Coulomb friction"), Port("bx", visc, "extra viscous friction"),
-                  Port("p", tuple(sym for sym, _ in d.values), "plant")),
+                  Port("p", params, "plant")),
         (Port("ddtheta", y, "joint accelerations"),),
         "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'", (LinearSolve(y, dyn.J, rhs),))
 
 
-def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
-    """rk4, measure and reference as CasADi functions (see the module docstring)."""
-    n, npar = d.n, len(d.values)
-    F = to_function(accel_spec(d))
+def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> ca.Function:
+    """rk4(x, f, u, d, tauc, bx, r, h, p) -> (x_next, f_next): one classical RK4 step of
+    length h of plant and reference filter, u, d and r held (see the module docstring)."""
+    n = d.n
+    F = to_function(accel_spec(d, params))
+    npar = F.size1_in(6)
     x, f = ca.SX.sym("x", 2 * n), ca.SX.sym("f", 2 * n)
     u, dist, tau_c, visc, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "bx", "r"))
     h, p = ca.SX.sym("h"), ca.SX.sym("p", npar)
@@ -71,14 +84,24 @@ def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
     k4 = deriv(x + h * k3[0], f + h * k3[1])
     x_next = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
     f_next = f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, h, p], [x_next, f_next],
-                      ["x", "f", "u", "d", "tauc", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
+    return ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, h, p], [x_next, f_next],
+                       ["x", "f", "u", "d", "tauc", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
+
+
+def reference_function(n: int) -> ca.Function:
+    """reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d of Gr(s) (section 5.2)."""
+    f, r = ca.SX.sym("f", 2 * n), ca.SX.sym("r", n)
+    return ca.Function("reference", [f, r], [r - GR_DAMPING * f[n:] - f[:n]], ["f", "r"], ["ddyd"], {"cse": True})
+
+
+def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
+    """rk4, measure and reference as CasADi functions (see the module docstring)."""
+    n = d.n
+    x = ca.SX.sym("x", 2 * n)
     nq, ndq, v, alpha = ca.SX.sym("nq", n), ca.SX.sym("ndq", n), ca.SX.sym("v", n), ca.SX.sym("alpha")
     measure = ca.Function("measure", [x, nq, ndq, v, alpha], [x[:n] + nq, v + alpha * (x[n:] + ndq - v)],
                           ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})
-    reference = ca.Function("reference", [f, r], [r - GR_DAMPING * f[n:] - f[:n]], ["f", "r"], ["ddyd"],
-                            {"cse": True})
-    return rk4, measure, reference
+    return rk4_function(d), measure, reference_function(n)
 
 
 @dataclass(frozen=True)

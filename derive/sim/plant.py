@@ -81,18 +81,6 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
                      changed=changed)
 
 
-def true_arm(arm, s: SimSettings):
-    """The plant's arm with the last link's point masses scaled by ``payload_scale``
-    (the Arm-level view of that one mismatch, used by derive.fmu.plant; the
-    simulators use :func:`true_plant`, which applies every mismatch key)."""
-    from dataclasses import replace
-    from fractions import Fraction
-
-    scale = Fraction(repr(s.payload_scale))
-    masses = tuple(replace(p, mass=p.mass * scale) if p.link == arm.n - 1 else p for p in arm.point_masses)
-    return replace(arm, point_masses=masses)
-
-
 class Plant:
     """The Python reference plant: x' = f(x, u) for x = (theta, theta'), the
     SymPy J and G lambdified in the parameter symbols, solved by numpy; one row

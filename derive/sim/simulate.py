@@ -29,7 +29,7 @@ from derive.control.pipeline import Derivation
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
 from derive.progress import progress
-from derive.sim.plant import SMOOTH, Plant, TruePlant, true_arm, true_plant  # noqa: F401 (re-exported)
+from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
 
 CONTROLLERS = ("mpc", "dobc", "npid")
 VARIANTS = {"mpc": ("mpc", True), "dobc": ("dobc", True), "npid": ("npid", True),

@@ -126,9 +126,10 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     solve = LinearSolve(y, value(d.dynamics.J), value(d.observer.J_solve_rhs))
     return (
         KernelSpec("gains", (theta, *params), (
-            Port("P", _flat(value(npid.P)), "proportional gain P(theta), eq. 35"),
-            Port("D", _flat(value(npid.D)), "derivative gain D(theta), eq. 36"),
-            Port("I", _flat(value(npid.I)), "integral gain I, eq. 37")),
+            # not P, D, I: C99's <complex.h> defines I (generated names are never one capital)
+            Port("gain_p", _flat(value(npid.P)), "proportional gain P(theta), eq. 35"),
+            Port("gain_d", _flat(value(npid.D)), "derivative gain D(theta), eq. 36"),
+            Port("gain_i", _flat(value(npid.I)), "integral gain I, eq. 37")),
             "PID gains of the nonlinear PID predictive controller (eq. 35-37)"),
         KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star)), "u*, eq. 15"),),
                    "Nonlinear predictive control law u* (eq. 15)"),

@@ -45,9 +45,9 @@ static int clip(real *v, real lim)
     return 0;
 }
 
-void glasgow_2link_gains(const real theta[N], real P[N * N], real D[N * N], real I[N * N])
+void glasgow_2link_gains(const real theta[N], real gain_p[N * N], real gain_d[N * N], real gain_i[N * N])
 {
-    glasgow_2link_kernel_gains(theta, P, D, I);
+    glasgow_2link_kernel_gains(theta, gain_p, gain_d, gain_i);
 }
 
 int glasgow_2link_mpc_step(const glasgow_2link_input *in, real u[N], mask *clipped)

@@ -87,8 +87,8 @@ typedef struct { glasgow_2link_real int_e[2]; } glasgow_2link_npid_state;
 typedef struct { glasgow_2link_real z[2]; } glasgow_2link_dobc_state;
 
 
-/* Row-major n x n gains at theta (eq. 35-37). */
-void glasgow_2link_gains(const glasgow_2link_real theta[2], glasgow_2link_real P[4], glasgow_2link_real D[4], glasgow_2link_real I[4]);
+/* Row-major n x n gains P(theta), D(theta), I at theta (eq. 35-37). */
+void glasgow_2link_gains(const glasgow_2link_real theta[2], glasgow_2link_real gain_p[4], glasgow_2link_real gain_d[4], glasgow_2link_real gain_i[4]);
 
 /* Each step writes u and, unless clipped is NULL, the clipped joints; on an
  * error it writes neither. */

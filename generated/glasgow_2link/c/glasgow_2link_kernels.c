@@ -6,7 +6,7 @@
 #include "glasgow_2link_kernels.h"
 
 /* PID gains of the nonlinear PID predictive controller (eq. 35-37); 13 operations. */
-void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real P[4], glasgow_2link_real D[4], glasgow_2link_real I[4])
+void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real gain_p[4], glasgow_2link_real gain_d[4], glasgow_2link_real gain_i[4])
 {
     glasgow_2link_real a0, a1, a2;
     a0 = 57.07009391304348;
@@ -15,44 +15,44 @@ void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link
     a2 = cos(a2);
     a1 = a1 * a2;
     a0 = a0 + a1;
-    P[0] = a0;
+    gain_p[0] = a0;
     a0 = 2.257562156521739;
     a1 = 2.874037147826087;
     a1 = a1 * a2;
     a0 = a0 + a1;
-    P[1] = a0;
+    gain_p[1] = a0;
     a0 = 358.26334545454546;
     a1 = 22.0932;
     a1 = a1 * a2;
     a0 = a0 + a1;
-    P[2] = a0;
+    gain_p[2] = a0;
     a0 = 699.1724363636364;
-    P[3] = a0;
+    gain_p[3] = a0;
     a0 = 22.734026086956522;
     a1 = 3.5925464347826086;
     a1 = a1 * a2;
     a0 = a0 + a1;
-    D[0] = a0;
+    gain_d[0] = a0;
     a0 = 1.410976347826087;
     a1 = 1.7962732173913043;
     a1 = a1 * a2;
     a0 = a0 + a1;
-    D[1] = a0;
+    gain_d[1] = a0;
     a0 = 124.48277272727273;
     a1 = 13.80825;
     a1 = a1 * a2;
     a0 = a0 + a1;
-    D[2] = a0;
+    gain_d[2] = a0;
     a0 = 238.11913636363636;
-    D[3] = a0;
+    gain_d[3] = a0;
     a0 = 70.95652173913044;
-    I[0] = a0;
+    gain_i[0] = a0;
     a0 = 0.0;
-    I[1] = a0;
+    gain_i[1] = a0;
     a0 = 545.4545454545455;
-    I[2] = a0;
+    gain_i[2] = a0;
     a0 = 1090.909090909091;
-    I[3] = a0;
+    gain_i[3] = a0;
 }
 
 /* Nonlinear predictive control law u* (eq. 15); 61 operations. */

@@ -5,8 +5,12 @@
 
 #include "glasgow_2link.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* PID gains of the nonlinear PID predictive controller (eq. 35-37) */
-void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real P[4], glasgow_2link_real D[4], glasgow_2link_real I[4]);
+void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real gain_p[4], glasgow_2link_real gain_d[4], glasgow_2link_real gain_i[4]);
 /* Nonlinear predictive control law u* (eq. 15) */
 void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], glasgow_2link_real u[2]);
 /* Nonlinear PID predictive control law (eq. 34-38) and its integrator step */
@@ -19,5 +23,9 @@ void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glas
 void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], glasgow_2link_real z0[2]);
 /* Disturbance estimate of the observer state (eq. 22) */
 void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], glasgow_2link_real dhat[2]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* GLASGOW_2LINK_KERNELS_H */

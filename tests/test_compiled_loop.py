@@ -3,7 +3,6 @@ a failing run that keeps the others (issue 15 item 7), progress bars (issue 13 i
 from __future__ import annotations
 
 import io
-import json
 import subprocess
 import sys
 from dataclasses import replace
@@ -12,6 +11,7 @@ import numpy as np
 import pytest
 
 import derive
+from derive import jsonio
 from derive.cli.simulate import with_voltage_limits
 from derive.sim.backends import Backend
 from derive.sim.compiled import build
@@ -108,8 +108,9 @@ def test_a_failing_controller_is_named_and_the_others_are_written(tmp_path):
     assert "Traceback" not in proc.stderr
     assert "dobc: the controller step returned 1" in proc.stderr and "t = 3.06 s" in proc.stderr
     assert "sample time 0.002 s is too long for the observer" in proc.stderr
-    data = json.loads(js.read_text())["controllers"]
+    data = jsonio.loads(js.read_text())["controllers"]
     assert data["dobc"]["links"] is None and data["dobc"]["failed"]["step"] == 1530
+    assert data["dobc"]["links_undefined"] == "no metrics: the run did not finish"
     assert data["dobc"]["failed"]["joint"] in (1, 2, 3)
     for name in ("mpc", "npid"):
         assert "failed" not in data[name] and len(data[name]["links"]) == 3

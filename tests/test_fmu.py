@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import json
 import math
 import re
 import subprocess
@@ -22,6 +21,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
+from derive import jsonio
 import derive
 from derive.cli import main
 from derive.codegen import testvectors as tv
@@ -285,7 +285,7 @@ def test_same_input_gives_the_same_bytes_and_the_token_follows_the_content(paper
         infos = z.infolist()
         assert [i.filename for i in infos] == sorted(i.filename for i in infos)
         assert {i.date_time for i in infos} == {(1980, 1, 1, 0, 0, 0)}
-        manifest = json.loads(z.read("documentation/MANIFEST.json"))
+        manifest = jsonio.loads(z.read("documentation/MANIFEST.json"))
         for entry, digest in manifest["files"].items():
             assert hashlib.sha256(z.read(entry)).hexdigest() == digest, entry
         assert manifest["options"] == {"fmi": 3, "form": "npid", "real": "double", "params": "runtime",
@@ -390,7 +390,7 @@ def test_controller_and_plant_fmus_reproduce_derive_simulate_default_metrics(pap
     derive simulate, make generate) within 1e-6 relative (1e-9 absolute for zeros)."""
     from derive.sim.simulate import Trace, metrics
 
-    committed = json.loads((ROOT / "generated" / "glasgow_2link" / "sim" / "metrics.json").read_text())
+    committed = jsonio.loads((ROOT / "generated" / "glasgow_2link" / "sim" / "metrics.json").read_text())
     s = paper.arm.simulation
     plant_path = _plant(paper, fmu_dir, 3)
     assert validate_fmu(str(plant_path)) == []

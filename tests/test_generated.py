@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from derive import jsonio
 import derive
 from derive.codegen import files as codegen, render
 from derive.codegen.files import generate_files
@@ -71,7 +72,7 @@ def test_manifest_records_arm_hash_and_versions():
     import hashlib
     import json
 
-    manifest = json.loads((ROOT / "generated" / "glasgow_2link" / "MANIFEST.json").read_text())
+    manifest = jsonio.loads((ROOT / "generated" / "glasgow_2link" / "MANIFEST.json").read_text())
     arm_bytes = resolve_arm_path(None).read_bytes()
     assert manifest["arm_sha256"] == hashlib.sha256(arm_bytes).hexdigest()
     assert set(manifest["versions"]) >= {"derive", "sympy", "casadi", "jinja2"}

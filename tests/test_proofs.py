@@ -8,7 +8,6 @@ is ``unproven``; the CLI writes JSON and Markdown and sets the exit code.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import subprocess
 import sys
@@ -18,6 +17,7 @@ from pathlib import Path
 import pytest
 import sympy as sp
 
+from derive import jsonio
 from derive.cli import check
 from derive.proofs import arm as proofs_arm, paper as pp, project as proofs_project
 from derive.proofs.exact import Field, Undecidable
@@ -247,7 +247,7 @@ def test_cli_check_paper_writes_json_and_report_without_an_arm(tmp_path):
     proc = _cli_check(tmp_path, "--paper", "--json", str(out_json), "--report", str(out_md))
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
-    doc = json.loads(out_json.read_text(encoding="utf-8"))
+    doc = jsonio.loads(out_json.read_text(encoding="utf-8"))
     assert doc["seconds"] >= 0 and doc["exit_code"] == 0 and doc["arm"] is None
     obs = {o["id"]: o for o in doc["obligations"]}
     assert {o["kind"] for o in obs.values()} == {"paper"} and len(obs) == 22
@@ -272,7 +272,7 @@ def test_cli_check_arm_runs_only_its_own_obligations(tmp_path):
     out_json = tmp_path / "check.json"
     proc = _cli_check(tmp_path, str(REPO / "tests" / "data" / "my3.toml"), "--json", str(out_json))
     assert proc.returncode == 0, proc.stderr
-    doc = json.loads(out_json.read_text(encoding="utf-8"))
+    doc = jsonio.loads(out_json.read_text(encoding="utf-8"))
     assert (doc["arm"], doc["n"], doc["exit_code"]) == ("my3", 3, 0)
     obs = {o["id"]: o for o in doc["obligations"]}
     assert {o["kind"] for o in obs.values()} == {"project"} and len(obs) == 12

@@ -3,11 +3,11 @@ workers (1 or 2 local processes, a Dask cluster), the worst sample rerun by
 ``derive simulate``, bad [sweep] input refused with one message and exit 2."""
 from __future__ import annotations
 
-import json
 import re
 
 import pytest
 
+from derive import jsonio
 from derive.cli import main
 from derive.model.spec import resolve_arm_path
 
@@ -68,7 +68,7 @@ def sweeps(tmp_path_factory):
 def test_sweep_json_is_byte_identical_for_1_and_2_workers_and_a_dask_cluster(sweeps):
     tmp, one, two, dask = sweeps
     assert one[1] == two[1] == dask[1]
-    data = json.loads(one[1])
+    data = jsonio.loads(one[1])
     assert data["samples"] == 8 and set(data["results"]) == {"mpc", "dobc", "npid"}
     fractions = {name: e["pass_fraction"]["all criteria"] for name, e in data["results"].items()}
     assert fractions["mpc"] == 0.0 and fractions["dobc"] > 0.5, fractions  # the paper's claim, in small
@@ -79,13 +79,13 @@ def test_sweep_json_is_byte_identical_for_1_and_2_workers_and_a_dask_cluster(swe
 
 def test_worst_sample_rerun_with_simulate_gives_the_reported_metric(sweeps, tmp_path):
     tmp, one, _, _ = sweeps
-    data = json.loads(one[1])
+    data = jsonio.loads(one[1])
     for name in ("mpc", "dobc"):
         worst = data["results"][name]["worst"]
         js = tmp_path / f"{name}.json"
         assert main(["simulate", str(one[0] / worst["file"]), "--controllers", name, "--out",
                      str(tmp_path / name), "--json", str(js)]) == 0
-        links = json.loads(js.read_text())["controllers"][name]["links"]
+        links = jsonio.loads(js.read_text())["controllers"][name]["links"]
         value = max(link[worst["metric"]] for link in links)
         assert value == pytest.approx(worst["value"], rel=1e-5), (name, value, worst)
 

@@ -7,11 +7,11 @@ Prints W, ||W||_2, the certificate's verdict and the ``w = ...`` line to put in 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
+from derive import jsonio
 from derive.errors import DeriveError
 
 
@@ -81,5 +81,5 @@ def run(args: argparse.Namespace) -> int:
         doc = {"arm": arm.name, "box_rad_per_s": list(box), "rate_per_s": rate, "structure": structure,
                "W": rows, "norm": syn.norm, "certificate": syn.decision.verdict.value, "cells": syn.decision.cells,
                "headroom": syn.headroom, "seconds": round(syn.seconds, 3)}
-        write_text(args.json, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+        write_text(args.json, jsonio.dumps(doc, sort_keys=False))
     return 0 if syn.decision.verdict.value == "proved" else 1

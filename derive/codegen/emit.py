@@ -24,7 +24,6 @@ only.
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import tempfile
@@ -32,6 +31,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from derive import jsonio
 from derive.errors import EmitError
 
 MANIFEST = "MANIFEST.json"
@@ -76,7 +76,7 @@ def listed(text: str) -> set[str] | None:
     """The paths a manifest claims (its ``files``, an object or a list, and itself),
     or None when it is not such a manifest."""
     try:
-        doc = json.loads(text)
+        doc = jsonio.loads(text)
     except (ValueError, RecursionError):
         return None
     files = doc.get("files") if isinstance(doc, dict) else None
@@ -239,8 +239,8 @@ def write_tree(target: Path, files: dict[str, str], binary: dict[str, bytes] | N
         old = sorted(p for p in ours - {MANIFEST} if _inside(target, p)
                      and ((target / p).is_file() or (target / p).is_symlink()))
         # 1. a manifest listing old and new paths: an interrupted run leaves nothing of derive's unlisted
-        union = json.dumps({"_note": "derive was interrupted while writing this folder; regenerate",
-                            "files": sorted((ours | new) - {MANIFEST})}, indent=2) + "\n"
+        union = jsonio.dumps({"_note": "derive was interrupted while writing this folder; regenerate",
+                              "files": sorted((ours | new) - {MANIFEST})}, sort_keys=False)
         (staging / "union.json").write_text(union, encoding="utf-8")
         aside.mkdir()
         if (target / MANIFEST).exists():

@@ -5,10 +5,10 @@ Pure: renders everything to strings; ``derive.codegen.emit.write_tree`` writes.
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Callable
 from importlib import metadata
 
+from derive import jsonio
 from derive.codegen.kernels import ParamsMode
 from derive.codegen.plant import plant_c_files, plant_view
 from derive.control.pipeline import Derivation
@@ -111,4 +111,4 @@ def manifest_text(d: Derivation, files: dict[str, str | bytes], arm_bytes: bytes
         "files": {path: hashlib.sha256(text.encode() if isinstance(text, str) else text).hexdigest()
                   for path, text in sorted(files.items())},
     }
-    return json.dumps(manifest, indent=2, sort_keys=True, allow_nan=False) + "\n"
+    return jsonio.dumps(manifest)

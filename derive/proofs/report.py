@@ -5,13 +5,14 @@ Render to strings; ``derive check`` writes them with
 """
 from __future__ import annotations
 
-import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import sympy as sp
 
+from derive import jsonio
 from derive.proofs.core import Counterexample, Kind, Result, Status
 
 if TYPE_CHECKING:
@@ -91,7 +92,18 @@ def _cex_json(c: Counterexample | None) -> dict | None:
     return {"point": {str(s): str(v) for s, v in c.point}, "from_arm": [str(s) for s in c.from_arm],
             "lhs_label": c.lhs_label, "rhs_label": c.rhs_label,
             "lhs": [str(x) for x in c.lhs], "rhs": [str(x) for x in c.rhs],
-            "lhs_float": [float(x) for x in c.lhs], "rhs_float": [float(x) for x in c.rhs]}
+            "lhs_float": _floats(c.lhs), "rhs_float": _floats(c.rhs)}
+
+
+def _floats(values) -> list[float] | jsonio.Undefined:
+    """The exact values as doubles, or undefined (with why) when one is not a finite double."""
+    try:
+        out = [float(x) for x in values]
+    except (OverflowError, TypeError, ValueError):
+        out = [float("nan")]
+    if all(math.isfinite(x) for x in out):
+        return out
+    return jsonio.Undefined("a value is not a finite double; the exact values are in lhs and rhs")
 
 
 def render_json(d: Derivation | None, results: Sequence[Result], seconds: float, code: int) -> str:
@@ -103,7 +115,7 @@ def render_json(d: Derivation | None, results: Sequence[Result], seconds: float,
                             "statement": r.obligation.statement, "detail": r.outcome.detail,
                             "corrected": r.outcome.corrected, "counterexample": _cex_json(r.outcome.counterexample),
                             "evidence": r.outcome.evidence} for r in results]}
-    return json.dumps(doc, indent=2) + "\n"
+    return jsonio.dumps(doc, sort_keys=False)
 
 
 def _md_cell(text: str) -> str:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
@@ -257,21 +258,30 @@ def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarra
             f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
 
 
-def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float]]:
+def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float | Undefined]]:
     """Per link: rms_error, max_error, steady_state_error [rad], control_effort
     (RMS voltage) [V], saturated_time [s]. steady_state_error is the mean |e| over
-    the last 20% of each half-period of the pulse train (the settled parts)."""
+    the last 20% of each half-period of the pulse train (the settled parts); a figure
+    that has no value (no settled sample in a short run, a non-finite trace) is an
+    :class:`~derive.jsonio.Undefined` with the reason, never NaN."""
     e = trace.yd - trace.theta
     out = []
     half = s.pulse_period / 2
+    end = float(trace.t[-1]) if len(trace.t) else 0.0
     for i in range(e.shape[1]):
         phase = (trace.t - s.start[i]) % half
         settled = (trace.t >= s.start[i]) & (phase >= 0.8 * half)
+        first = s.start[i] + 0.8 * half
         if i > 0:  # before its start the link must hold still: that counts as settled too
             settled |= (trace.t < s.start[i]) & (trace.t >= 0.8 * s.start[i])
+            first = min(first, 0.8 * s.start[i]) if s.start[i] > 0 else first
         ei = np.abs(e[:, i])
-        out.append({"rms_error": float(np.sqrt(np.mean(ei ** 2))), "max_error": float(np.max(ei)),
-                    "steady_state_error": float(np.mean(ei[settled])) if settled.any() else float("nan"),
-                    "control_effort": float(np.sqrt(np.mean(trace.u[:, i] ** 2))),
-                    "saturated_time": float(np.sum(trace.saturated[:, i]) * s.sample_time)})
+        figures = {"rms_error": float(np.sqrt(np.mean(ei ** 2))), "max_error": float(np.max(ei)),
+                   "steady_state_error": float(np.mean(ei[settled])) if settled.any() else Undefined(
+                       f"no settled sample: the run ends at t = {end:g} s, before link {i + 1}'s first settled "
+                       f"part (the last 20% of a half-period of the pulse train) begins at t = {first:g} s"),
+                   "control_effort": float(np.sqrt(np.mean(trace.u[:, i] ** 2))),
+                   "saturated_time": float(np.sum(trace.saturated[:, i]) * s.sample_time)}
+        out.append({key: Undefined(f"not finite ({x}): the trace holds non-finite values")
+                    if isinstance(x, float) and not math.isfinite(x) else x for key, x in figures.items()})
     return out

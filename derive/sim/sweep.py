@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from derive.errors import DeriveError
+from derive.jsonio import Undefined
 from derive.model.simspec import SimSettings
 from derive.model.spec import Arm
 from derive.model.sweepspec import METRICS, PARAMETERS, Criterion, Distribution, SweepSpec
@@ -111,7 +112,8 @@ def run_chunk(payload: Payload, jobs: list[tuple[int, SimSettings, dict]]) -> li
                 fails[name] = tr.failure.message(name)
                 errs[name] = None
                 continue
-            res[name] = metrics(tr, s)
+            # an undefined figure (jsonio.Undefined) is NaN here: the summary leaves it out
+            res[name] = [{k: math.nan if isinstance(v, Undefined) else v for k, v in m.items()} for m in metrics(tr, s)]
             errs[name] = (tr.yd - tr.theta)[::stride]
         out.append(SampleResult(index, drawn, s, res, fails, t, errs))
     return out

@@ -8,14 +8,14 @@ mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
-A step returns (code, u, clipped): clipped is the bitmask of the joints it
-clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
 Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
 Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
 linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
 ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
-with u and clipped None, and leaves its state untouched.
+and leaves its state and u untouched. An argument of the wrong shape or type (a
+vector that is not N real numbers, shape (N,); a dt that is not a real number)
+raises ValueError or TypeError naming it, before anything is computed.
 
 Baked with the arm file's values (regenerate, or generate with --params
 runtime, to change them):
@@ -49,8 +49,10 @@ runtime, to change them):
     w1 = 1.0 1/s (controller.w[1])
     w2 = 2.0 1/s (controller.w[2])
 """
+from collections.abc import Sequence as _Sequence
 from math import (cos as _cos, exp as _exp, isfinite as _isfinite, log as _log,  # noqa: F401
                   sin as _sin, sqrt as _sqrt, tan as _tan)
+from numbers import Real as _Real
 
 import numpy as np
 
@@ -625,6 +627,62 @@ def _kernel_dhat(dtheta, z):
     return dhat
 
 
+_FLOAT, _LIST, _SIZE = {float}, {list}, {N}
+_INPUT = tuple(f"inp.{name}" for name in Input.__slots__)
+
+
+def _shape(value):
+    """"shape (2, 1)", or what a ragged nested sequence is."""
+    try:
+        return f"shape {np.shape(value)}"
+    except ValueError:
+        return "a ragged nested sequence"
+
+
+def _vector(name, value):
+    """``value`` (N real numbers: a list, tuple or 1-D array) as a list of N floats;
+    ValueError (wrong shape) or TypeError (not real numbers) naming ``name`` otherwise."""
+    if type(value) is list and len(value) == N and set(map(type, value)) == _FLOAT:
+        return value  # the common case, checked fast
+    if isinstance(value, np.ndarray) or (isinstance(value, _Sequence) and not isinstance(value, (str, bytes))):
+        shape = _shape(value)
+        if shape != f"shape ({N},)":
+            raise ValueError(f"{name}: expected shape ({N},), got {shape}")
+        bad = next((x for x in value if isinstance(x, (bool, np.bool_)) or not isinstance(x, _Real)), None)
+        if bad is None:
+            return [float(x) for x in value]
+        got = f"an array of {value.dtype}" if isinstance(value, np.ndarray) else f"{type(bad).__name__} {bad!r}"
+        raise TypeError(f"{name}: expected {N} real numbers, shape ({N},), got {got}")
+    raise TypeError(f"{name}: expected {N} real numbers, shape ({N},), got {type(value).__name__} {value!r:.40}")
+
+
+def _scalar(name, value):
+    """``value`` (a real number) as a float; TypeError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, _Real):
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__} {value!r:.40}")
+    return float(value)
+
+
+def _input(inp):
+    """The five vectors of an Input, each checked by _vector."""
+    try:
+        fields = (inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd)
+    except AttributeError:
+        raise TypeError(f"inp: expected an Input (theta, dtheta, yd, dyd, ddyd), got {type(inp).__name__}") from None
+    if (set(map(type, fields)) == _LIST and set(map(len, fields)) == _SIZE
+            and set(map(type, fields[0] + fields[1] + fields[2] + fields[3] + fields[4])) == _FLOAT):
+        return fields  # the common case, checked fast
+    return [_vector(name, f) for name, f in zip(_INPUT, fields)]
+
+
+def _state(state, field):
+    """state.<field> (int_e of an NpidState, z of a DobcState), checked by _vector."""
+    if not hasattr(state, field):
+        kind = "NpidState" if field == "int_e" else "DobcState"
+        raise TypeError(f"state: expected a {kind} (with .{field}), got {type(state).__name__}")
+    return _vector(f"state.{field}", getattr(state, field))
+
+
 def _finite(*vectors):
     return all(_isfinite(x) for v in vectors for x in v)
 
@@ -639,54 +697,56 @@ def _clip(v, limits):
     return out, hit
 
 
-def _mask(hit):
-    """The bitmask of the clipped joints: bit i for joint i + 1."""
-    return sum(1 << i for i, h in enumerate(hit) if h)
-
-
 def gains(theta):
     """(P, D, I) at theta, each an N x N array (eq. 35-37)."""
-    P, D, I = _kernel_gains(theta)
+    P, D, I = _kernel_gains(_vector("theta", theta))
     return (np.array(P).reshape(N, N), np.array(D).reshape(N, N), np.array(I).reshape(N, N))
 
 
 def mpc_step(inp):
-    """(code, u, clipped) of the predictive law u* (eq. 15)."""
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd):
-        return ENONFINITE, None, None
-    (u,) = (_kernel_mpc(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd),)
-    u, hit = _clip(u, U_MAX)
-    return (OK, np.array(u), _mask(hit)) if _finite(u) else (ENONFINITE, None, None)
+    """(code, u) of the predictive law u* (eq. 15)."""
+    x = _input(inp)
+    if not _finite(*x):
+        return ENONFINITE, None
+    (u,) = (_kernel_mpc(*x),)
+    if not _finite(u):
+        return ENONFINITE, None
+    u, _ = _clip(u, U_MAX)
+    return OK, np.array(u)
 
 
 def npid_init(state, inp):
     """Zero the integral: the PID form equals the composite law from t = 0."""
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd):
+    x = _input(inp)
+    _state(state, "int_e")
+    if not _finite(*x):
         return ENONFINITE
     state.int_e = [0.0] * N
     return OK
 
 
 def npid_step(state, inp, dt):
-    """(code, u, clipped) of one step of u = P e + D e' + I int e + N (eq. 34)."""
+    """(code, u) of one step of u = P e + D e' + I int e + N (eq. 34)."""
+    x, int_e, dt = _input(inp), _state(state, "int_e"), _scalar("dt", dt)
     if not (_isfinite(dt) and dt > 0):
-        return EDT, None, None
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.int_e):
-        return ENONFINITE, None, None
-    u, step = _kernel_npid(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.int_e, (dt,))
+        return EDT, None
+    if not _finite(*x, int_e):
+        return ENONFINITE, None
+    u, step = _kernel_npid(*x, int_e, (dt,))
+    if not _finite(u, step):
+        return ENONFINITE, None
     u, hit = _clip(u, U_MAX)
-    nxt = [i if h else i_next for i, i_next, h in zip(state.int_e, step, hit)]
-    if not _finite(u, nxt):
-        return ENONFINITE, None, None
-    state.int_e = nxt
-    return OK, np.array(u), _mask(hit)
+    state.int_e = [i if h else i_next for i, i_next, h in zip(int_e, step, hit)]
+    return OK, np.array(u)
 
 
 def dobc_init(state, inp):
     """z(0) from the derived initial estimate dhat(0): equal to the NPID form."""
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd):
+    x = _input(inp)
+    _state(state, "z")
+    if not _finite(*x):
         return ENONFINITE
-    (z0,) = (_kernel_dobc_init(inp.theta, inp.dtheta, inp.yd, inp.dyd),)
+    (z0,) = (_kernel_dobc_init(*x[:4]),)
     if not _finite(z0):
         return ENONFINITE
     state.z = list(z0)
@@ -694,26 +754,30 @@ def dobc_init(state, inp):
 
 
 def dobc_step(state, inp, dt):
-    """(code, u, clipped) of one step of u = u* - dhat with the observer (eq. 21-27)."""
+    """(code, u) of one step of u = u* - dhat with the observer (eq. 21-27)."""
+    x, z, dt = _input(inp), _state(state, "z"), _scalar("dt", dt)
     if not (_isfinite(dt) and dt > 0):
-        return EDT, None, None
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.z):
-        return ENONFINITE, None, None
-    (u,) = (_kernel_dobc(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.z),)
-    u, hit = _clip(u, U_MAX)
-    (nxt,) = (_kernel_observer(inp.theta, inp.dtheta, state.z, u, (dt,)),)
-    if not _finite(u, nxt):
-        return ENONFINITE, None, None
+        return EDT, None
+    if not _finite(*x, z):
+        return ENONFINITE, None
+    (u,) = (_kernel_dobc(*x, z),)
+    if not _finite(u):
+        return ENONFINITE, None
+    u, _ = _clip(u, U_MAX)
+    (nxt,) = (_kernel_observer(x[0], x[1], z, u, (dt,)),)
+    if not _finite(nxt):
+        return ENONFINITE, None
     state.z = nxt
-    return OK, np.array(u), _mask(hit)
+    return OK, np.array(u)
 
 
 def dobc_estimate(state, inp):
     """(code, dhat): the estimate dhat = B^-1 (z + W theta') (eq. 22) of ``state``,
     the one the next dobc_step from it uses; the state is not changed."""
-    if not _finite(inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, state.z):
+    x, z = _input(inp), _state(state, "z")
+    if not _finite(*x, z):
         return ENONFINITE, None
-    (dhat,) = (_kernel_dhat(inp.dtheta, state.z),)
+    (dhat,) = (_kernel_dhat(x[1], z),)
     if not _finite(dhat):
         return ENONFINITE, None
     return OK, np.array(dhat)

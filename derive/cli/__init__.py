@@ -27,10 +27,21 @@ COMMANDS = {
 }
 
 
+def version() -> str:
+    """The installed distribution's version (pyproject.toml), or that of the source tree."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("derive")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="derive", description=(
         "Derive and generate disturbance-observer-based and nonlinear PID controllers for "
         "robot arms (Chen's paper, eq. 11-38)."))
+    parser.add_argument("--version", action="version", version=f"derive {version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (module, help_text) in COMMANDS.items():
         importlib.import_module(module).add_arguments(sub.add_parser(name, help=help_text))

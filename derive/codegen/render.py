@@ -6,7 +6,10 @@ from pathlib import Path
 
 import jinja2
 
-TEMPLATES = Path(__file__).resolve().parents[2] / "templates"
+_PACKAGE = Path(__file__).resolve().parents[1]
+# an installed wheel: derive/templates (setup.py copies them there); a source tree or an
+# editable install: the repository's top-level templates/
+TEMPLATES = _PACKAGE / "templates" if (_PACKAGE / "templates").is_dir() else _PACKAGE.parent / "templates"
 
 
 @lru_cache(maxsize=None)

@@ -116,3 +116,15 @@ def test_fuzz_driver_contract_holds_under_ofast(trees, tmp_path, cc):
     out = run(exe, "20000")
     assert re.search(r"^20000 passed, 0 failed$", out, re.M), out
     assert int(re.search(r"(\d+) error codes returned", out).group(1)) > 2000
+
+
+def test_no_c_template_tests_finiteness_with_the_math_library():
+    """The kind, beyond the controller's glue: every C template (the FMU shells, plant and
+    variable setters too, which an importer compiles with its own flags) tests finiteness
+    on the exponent bits, never with <math.h>'s classification macros."""
+    templates = sorted(p for p in (ROOT / "templates").rglob("*.jinja") if re.search(r"\.[ch]\.jinja$", p.name))
+    assert len(templates) >= 10
+    for path in templates:
+        code = re.sub(r"/\*.*?\*/|\{#.*?#\}", " ", path.read_text(encoding="utf-8"), flags=re.S)
+        found = re.findall(r"\b(isfinite|isnan|isinf|isnormal|fpclassify)\s*\(", code)
+        assert not found, (path.relative_to(ROOT).as_posix(), found)

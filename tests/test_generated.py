@@ -194,7 +194,7 @@ def test_read_only_folder_is_refused_for_a_non_root_user(tmp_path):
     (pkg / "codegen").mkdir(parents=True)
     for init in (pkg / "__init__.py", pkg / "codegen" / "__init__.py"):
         init.write_text("")
-    for name in ("codegen/emit.py", "errors.py"):
+    for name in ("codegen/emit.py", "errors.py", "jsonio.py"):
         shutil.copy(ROOT / "derive" / name, pkg / name)
     for folder in (base / "pkg", pkg, pkg / "codegen"):
         folder.chmod(0o755)

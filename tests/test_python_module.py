@@ -105,6 +105,13 @@ def test_every_function_names_every_bad_vector(module, bad, error, got):
         setattr(state, field, bad)
         with pytest.raises(error, match=rf"^state\.{field}: expected .*shape \(2,\).*{got}$"):
             call(state)
+    ok = [0.1, 0.2]
+    for name, args in (("mass_matrix", ("theta",)), ("bias", ("theta", "dtheta")), ("gravity", ("theta",)),
+                       ("forward_dynamics", ("theta", "dtheta", "u", "d"))):  # the plant model
+        for k, arg in enumerate(args):
+            values = [bad if j == k else ok for j in range(len(args))]
+            with pytest.raises(error, match=rf"^{arg}: expected .*shape \(2,\).*{got}$"):
+                getattr(m, name)(*p, *values)
 
 
 def test_dt_state_and_input_of_the_wrong_kind_are_type_errors(module):
@@ -149,3 +156,9 @@ def test_runtime_parameters_are_checked_too(runtime):
         m.npid_step(params, m.NpidState(), _input(m), 1e-3)
     with pytest.raises(TypeError, match=r"^params: expected a Params, got dict$"):
         m.gains({}, [0.1, 0.2])
+    params = m.Params()
+    params.m1 = None
+    with pytest.raises(TypeError, match=r"^params\.m1: expected a real number, got NoneType None$"):
+        m.forward_dynamics(params, [0.1, 0.2], [0.0, 0.0], [1.0, 0.0], [0.0, 0.0])
+    with pytest.raises(TypeError, match=r"^params: expected a Params, got dict$"):
+        m.input_matrix({})

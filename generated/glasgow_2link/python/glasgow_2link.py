@@ -943,7 +943,9 @@ def mass_matrix(theta):
     """inertia matrix J(theta), n x n (eq. 12) [kg m^2].
 
     Returns (code, J), an N x N array; (ENONFINITE, None) for a non-finite input or result.
+    theta: each N real numbers, shape (N,) (else ValueError or TypeError naming it).
     """
+    theta = _vector("theta", theta)
     if not _finite(theta):
         return ENONFINITE, None
     (J,) = (_kernel_mass_matrix(theta),)
@@ -956,7 +958,10 @@ def bias(theta, dtheta):
     """G(theta, theta'): Coriolis, centrifugal, gravity and damping torques (eq. 12) [N m].
 
     Returns (code, G); (ENONFINITE, None) for a non-finite input or result.
+    theta, dtheta: each N real numbers, shape (N,) (else ValueError or TypeError naming it).
     """
+    theta = _vector("theta", theta)
+    dtheta = _vector("dtheta", dtheta)
     if not _finite(theta, dtheta):
         return ENONFINITE, None
     (G,) = (_kernel_bias(theta, dtheta),)
@@ -969,7 +974,9 @@ def gravity(theta):
     """gravity torques g(theta) = G(theta, 0) without damping [N m].
 
     Returns (code, g); (ENONFINITE, None) for a non-finite input or result.
+    theta: each N real numbers, shape (N,) (else ValueError or TypeError naming it).
     """
+    theta = _vector("theta", theta)
     if not _finite(theta):
         return ENONFINITE, None
     (g,) = (_kernel_gravity(theta),)
@@ -993,7 +1000,12 @@ def forward_dynamics(theta, dtheta, u, d):
     """joint accelerations theta'' [rad/s^2] with J theta'' = B (u + d) - G.
 
     Returns (code, ddtheta); (ENONFINITE, None) for a non-finite input or result.
+    theta, dtheta, u, d: each N real numbers, shape (N,) (else ValueError or TypeError naming it).
     """
+    theta = _vector("theta", theta)
+    dtheta = _vector("dtheta", dtheta)
+    u = _vector("u", u)
+    d = _vector("d", d)
     if not _finite(theta, dtheta, u, d):
         return ENONFINITE, None
     (ddtheta,) = (_kernel_forward_dynamics(theta, dtheta, u, d),)

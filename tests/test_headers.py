@@ -63,7 +63,7 @@ def _run(cmd: list[str], cwd: Path | None = None) -> subprocess.CompletedProcess
 def _objects(cc: str, c_dir: Path, out: Path) -> list[str]:
     """The library compiled as C."""
     objs = []
-    for src in (f"{ARM}.c", f"{ARM}_kernels.c"):
+    for src in (f"{ARM}.c", f"{ARM}_kernels.c", f"{ARM}_plant.c"):
         obj = out / f"{cc}_{src}.o"
         _run([cc, *STRICT, "-O1", f"-I{c_dir}", "-c", str(c_dir / src), "-o", str(obj)])
         objs.append(str(obj))
@@ -74,14 +74,16 @@ def _user_file(headers: list[str], runtime: bool) -> str:
     """Every standard header, then both generated ones, and calls through the public API."""
     p = f"&params, " if runtime else ""
     return "\n".join([*(f"#include <{h}.h>" for h in headers), f'#include "{ARM}.h"', f'#include "{ARM}_kernels.h"',
+                      f'#include "{ARM}_plant.h"',
                       "#include <stdio.h>", "int main(void)", "{",
                       f"    {ARM}_input in = {{ {{0.1f, 0.2f}}, {{0, 0}}, {{0.5f, 0.5f}}, {{0, 0}}, {{0, 0}} }};",
-                      f"    {ARM}_real u[2], gp[4], gd[4], gi[4];",
+                      f"    {ARM}_real u[2], gp[4], gd[4], gi[4], mass[4];",
                       f"    {ARM}_params params;" if runtime else "",
                       f"    {ARM}_params_default(&params);" if runtime else "",
                       f"    {ARM}_gains({p}in.theta, gp, gd, gi);",
                       f"    if ({ARM}_mpc_step({p}&in, u) != {ARM.upper()}_OK) return 1;",
-                      '    printf("%.9g %.9g %.9g\\n", (double)u[0], (double)u[1], (double)gi[3]);',
+                      f"    if ({ARM}_mass_matrix({p}in.theta, mass) != {ARM.upper()}_OK) return 1;",
+                      '    printf("%.9g %.9g %.9g %.9g\\n", (double)u[0], (double)u[1], (double)gi[3], (double)mass[1]);',
                       "    return 0;", "}", ""])
 
 
@@ -147,7 +149,7 @@ def test_no_word_of_a_generated_header_is_a_standard_macro_or_a_single_capital(t
     macros = _macros("gcc", "c11", C11_HEADERS, tmp_path) | _macros("clang", "c11", C11_HEADERS, tmp_path)
     macros |= _macros("g++", "c++17", CPP_HEADERS, tmp_path, "cpp")
     for c_dir in trees.values():
-        for header in (c_dir / f"{ARM}.h", c_dir / f"{ARM}_kernels.h"):
+        for header in (c_dir / f"{ARM}.h", c_dir / f"{ARM}_kernels.h", c_dir / f"{ARM}_plant.h"):
             code = re.sub(r"/\*.*?\*/", " ", header.read_text(), flags=re.S)
             code = re.sub(r'"[^"\n]*"', " ", code)  # extern "C"
             code = "\n".join(line for line in code.splitlines() if not line.lstrip().startswith("#"))

@@ -72,12 +72,18 @@ def plant_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     )
 
 
+# The public header names no parameter with a single capital (J, G, B): C99's <complex.h>
+# defines I, and a later standard header may take another letter (issue 10, item 4).
+C_OUTPUTS = {"J": "mass", "G": "bias", "g": "gravity", "B": "input_gain"}
+
+
 @dataclass(frozen=True)
 class PlantFunction:
     """One exported function: its name, output port, output size, inputs, doc."""
 
     name: str
     output: str
+    c_output: str                # the C parameter the result is written to (no single capital: see below)
     size: int
     inputs: tuple[str, ...]
     c_args: tuple[str, ...]      # the public signature after the params argument
@@ -102,9 +108,11 @@ def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
     def function(k: KernelSpec) -> PlantFunction:
         inputs = tuple(p for p in k.inputs if p.name != "p")
         out = k.outputs[0]
-        c_args = tuple(f"const {ctype} {p.name}[{p.size}]" for p in inputs) + (f"{ctype} {out.name}[{out.size}]",)
-        return PlantFunction(name=k.name, output=out.name, size=out.size, inputs=tuple(p.name for p in inputs),
-                             c_args=c_args, matrix=k.name in ("mass_matrix", "input_matrix"), doc=docs[k.name])
+        c_out = C_OUTPUTS.get(out.name, out.name)
+        c_args = tuple(f"const {ctype} {p.name}[{p.size}]" for p in inputs) + (f"{ctype} {c_out}[{out.size}]",)
+        return PlantFunction(name=k.name, output=out.name, c_output=c_out, size=out.size,
+                             inputs=tuple(p.name for p in inputs), c_args=c_args,
+                             matrix=k.name in ("mass_matrix", "input_matrix"), doc=docs[k.name])
 
     functions = tuple(function(k) for k in specs)
     return PlantView(kernels=tuple(kernel_view(k, real, d.arm.name) for k in specs), functions=functions)

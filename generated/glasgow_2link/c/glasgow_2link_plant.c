@@ -175,18 +175,18 @@ static int finite_all(const real *x, size_t count)
     return 1;
 }
 
-int glasgow_2link_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real J[4])
+int glasgow_2link_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real mass[4])
 {
     real out[4];
     size_t i;
     if (!finite_all(theta, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_plant_kernel_mass_matrix(theta, out);
     if (!finite_all(out, 4)) return GLASGOW_2LINK_ENONFINITE;
-    for (i = 0; i < 4; ++i) J[i] = out[i];
+    for (i = 0; i < 4; ++i) mass[i] = out[i];
     return GLASGOW_2LINK_OK;
 }
 
-int glasgow_2link_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real G[2])
+int glasgow_2link_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real bias[2])
 {
     real out[2];
     size_t i;
@@ -194,28 +194,28 @@ int glasgow_2link_bias(const glasgow_2link_real theta[2], const glasgow_2link_re
     if (!finite_all(dtheta, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_plant_kernel_bias(theta, dtheta, out);
     if (!finite_all(out, 2)) return GLASGOW_2LINK_ENONFINITE;
-    for (i = 0; i < 2; ++i) G[i] = out[i];
+    for (i = 0; i < 2; ++i) bias[i] = out[i];
     return GLASGOW_2LINK_OK;
 }
 
-int glasgow_2link_gravity(const glasgow_2link_real theta[2], glasgow_2link_real g[2])
+int glasgow_2link_gravity(const glasgow_2link_real theta[2], glasgow_2link_real gravity[2])
 {
     real out[2];
     size_t i;
     if (!finite_all(theta, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_plant_kernel_gravity(theta, out);
     if (!finite_all(out, 2)) return GLASGOW_2LINK_ENONFINITE;
-    for (i = 0; i < 2; ++i) g[i] = out[i];
+    for (i = 0; i < 2; ++i) gravity[i] = out[i];
     return GLASGOW_2LINK_OK;
 }
 
-int glasgow_2link_input_matrix(glasgow_2link_real B[4])
+int glasgow_2link_input_matrix(glasgow_2link_real input_gain[4])
 {
     real out[4];
     size_t i;
     glasgow_2link_plant_kernel_input_matrix(out);
     if (!finite_all(out, 4)) return GLASGOW_2LINK_ENONFINITE;
-    for (i = 0; i < 4; ++i) B[i] = out[i];
+    for (i = 0; i < 4; ++i) input_gain[i] = out[i];
     return GLASGOW_2LINK_OK;
 }
 

@@ -16,19 +16,19 @@
 extern "C" {
 #endif
 
-/* inertia matrix J(theta), n x n (eq. 12) [kg m^2] */
-int glasgow_2link_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real J[4]);
+/* inertia matrix J(theta), n x n (eq. 12) [kg m^2]; written to mass */
+int glasgow_2link_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real mass[4]);
 
-/* G(theta, theta'): Coriolis, centrifugal, gravity and damping torques (eq. 12) [N m] */
-int glasgow_2link_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real G[2]);
+/* G(theta, theta'): Coriolis, centrifugal, gravity and damping torques (eq. 12) [N m]; written to bias */
+int glasgow_2link_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real bias[2]);
 
-/* gravity torques g(theta) = G(theta, 0) without damping [N m] */
-int glasgow_2link_gravity(const glasgow_2link_real theta[2], glasgow_2link_real g[2]);
+/* gravity torques g(theta) = G(theta, 0) without damping [N m]; written to gravity */
+int glasgow_2link_gravity(const glasgow_2link_real theta[2], glasgow_2link_real gravity[2]);
 
-/* input matrix B, n x n (eq. 12) [N m/V] */
-int glasgow_2link_input_matrix(glasgow_2link_real B[4]);
+/* input matrix B, n x n (eq. 12) [N m/V]; written to input_gain */
+int glasgow_2link_input_matrix(glasgow_2link_real input_gain[4]);
 
-/* joint accelerations theta'' [rad/s^2] with J theta'' = B (u + d) - G */
+/* joint accelerations theta'' [rad/s^2] with J theta'' = B (u + d) - G; written to ddtheta */
 int glasgow_2link_forward_dynamics(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real u[2], const glasgow_2link_real d[2], glasgow_2link_real ddtheta[2]);
 
 #ifdef __cplusplus

@@ -128,3 +128,41 @@ def test_no_c_template_tests_finiteness_with_the_math_library():
         code = re.sub(r"/\*.*?\*/|\{#.*?#\}", " ", path.read_text(encoding="utf-8"), flags=re.S)
         found = re.findall(r"\b(isfinite|isnan|isinf|isnormal|fpclassify)\s*\(", code)
         assert not found, (path.relative_to(ROOT).as_posix(), found)
+
+
+PLANT_CASES = r"""
+#include <math.h>
+#include <stdio.h>
+#include "glasgow_2link_plant.h"
+int main(void)
+{
+    const double ok[2] = {0.1, 0.2}, zero[2] = {0.0, 0.0};
+    double bad[2] = {0.1, 0.2}, out[4] = {7, 7, 7, 7};
+    int fails = 0, k;
+    for (k = 0; k < 4; ++k) {
+        bad[k / 2] = (k % 2) ? INFINITY : NAN;
+        bad[1 - k / 2] = 0.2;
+        if (glasgow_2link_mass_matrix(bad, out) != GLASGOW_2LINK_ENONFINITE || out[0] != 7) ++fails;
+        if (glasgow_2link_forward_dynamics(ok, zero, bad, zero, out) != GLASGOW_2LINK_ENONFINITE || out[0] != 7)
+            ++fails;
+    }
+    if (glasgow_2link_mass_matrix(ok, out) != GLASGOW_2LINK_OK || !(out[0] > 0)) ++fails;
+    printf("%d failed\n", fails);
+    return fails != 0;
+}
+"""
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+def test_plant_model_returns_enonfinite_under_ofast(trees, tmp_path, cc):
+    """The plant's functions (main's <arm>_plant.c) keep their ENONFINITE under -Ofast:
+    a NaN or Inf angle or input leaves the output untouched."""
+    c_dir = trees["double", "baked"]
+    lib = tmp_path / "plant.o"
+    subprocess.run([cc, "-Ofast", f"-I{c_dir}", "-c", str(c_dir / f"{ARM}_plant.c"), "-o", str(lib)], check=True)
+    src = tmp_path / "cases.c"
+    src.write_text(PLANT_CASES)
+    exe = tmp_path / "cases"
+    subprocess.run([cc, *STRICT, "-O1", f"-I{c_dir}", str(src), str(lib), "-lm", "-o", str(exe)], check=True)
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stdout == "0 failed\n", proc.stdout

@@ -3,6 +3,8 @@
  * as double arithmetic) and the glue that checks inputs and results. */
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
+#include <string.h>
 
 #include "glasgow_2link_plant.h"
 
@@ -166,11 +168,20 @@ static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real
     ddtheta[1] = a1;
 }
 
+typedef uint64_t real_bits;
+#define EXPONENT_BITS ((real_bits)0x7FFu << 52)          /* IEEE 754 binary64 */
+typedef char real_bits_have_the_size_of_real[sizeof(real_bits) == sizeof(real) ? 1 : -1];
+
+/* 1 when every x[i] is finite: not every exponent bit set. The bits are read through
+ * memcpy, not with isfinite(), which -ffast-math, -ffinite-math-only, -Ofast or
+ * -fno-honor-nans/-infinities may fold to 1: the error codes hold under any flags. */
 static int finite_all(const real *x, size_t count)
 {
     size_t i;
+    real_bits bits;
     for (i = 0; i < count; ++i) {
-        if (!isfinite(x[i])) return 0;
+        memcpy(&bits, &x[i], sizeof bits);
+        if ((bits & EXPONENT_BITS) == EXPONENT_BITS) return 0;
     }
     return 1;
 }

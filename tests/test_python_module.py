@@ -133,14 +133,14 @@ def test_dt_state_and_input_of_the_wrong_kind_are_type_errors(module):
 def test_real_numbers_of_any_container_give_the_same_u_and_nonfinite_keeps_its_code(module):
     m = module
     p = _args(m)
-    code, want = m.mpc_step(*p, _input(m))
-    assert code == m.OK and want.shape == (2,)
+    code, want, clipped = m.mpc_step(*p, _input(m))
+    assert code == m.OK and want.shape == (2,) and clipped == 0
     for theta in ((0.1, 0.2), np.array([0.1, 0.2]), [np.float64(0.1), 0.2]):
         assert np.array_equal(m.mpc_step(*p, _input(m, theta=theta))[1], want)
-    code, u = m.mpc_step(*p, _input(m, theta=np.array([0.1, 0.2], dtype=np.float32), dyd=[0, 0]))
+    code, u, _ = m.mpc_step(*p, _input(m, theta=np.array([0.1, 0.2], dtype=np.float32), dyd=[0, 0]))
     assert code == m.OK and np.allclose(u, want, rtol=1e-6)
-    assert m.mpc_step(*p, _input(m, theta=[float("nan"), 0.2])) == (m.ENONFINITE, None)
-    assert m.npid_step(*p, m.NpidState(), _input(m), float("nan")) == (m.EDT, None)
+    assert m.mpc_step(*p, _input(m, theta=[float("nan"), 0.2])) == (m.ENONFINITE, None, None)
+    assert m.npid_step(*p, m.NpidState(), _input(m), float("nan")) == (m.EDT, None, None)
     assert m.npid_step(*p, m.NpidState(), _input(m), 1)[0] == m.OK  # an int dt is a real number
 
 

@@ -8,14 +8,16 @@ mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
+A step returns (code, u, clipped): clipped is the bitmask of the joints it
+clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
 Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
 Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
 linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
 ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
-and leaves its state and u untouched. An argument of the wrong shape or type (a
-vector that is not N real numbers, shape (N,); a dt that is not a real number)
-raises ValueError or TypeError naming it, before anything is computed.
+with u and clipped None, and leaves its state untouched. An argument of the wrong
+shape or type (a vector that is not N real numbers, shape (N,); a dt that is not a
+real number) raises ValueError or TypeError naming it, before anything is computed.
 
 Baked with the arm file's values (regenerate, or generate with --params
 runtime, to change them):
@@ -697,6 +699,11 @@ def _clip(v, limits):
     return out, hit
 
 
+def _mask(hit):
+    """The bitmask of the clipped joints: bit i for joint i + 1."""
+    return sum(1 << i for i, h in enumerate(hit) if h)
+
+
 def gains(theta):
     """(P, D, I) at theta, each an N x N array (eq. 35-37)."""
     P, D, I = _kernel_gains(_vector("theta", theta))
@@ -704,15 +711,15 @@ def gains(theta):
 
 
 def mpc_step(inp):
-    """(code, u) of the predictive law u* (eq. 15)."""
+    """(code, u, clipped) of the predictive law u* (eq. 15)."""
     x = _input(inp)
     if not _finite(*x):
-        return ENONFINITE, None
+        return ENONFINITE, None, None
     (u,) = (_kernel_mpc(*x),)
     if not _finite(u):
-        return ENONFINITE, None
-    u, _ = _clip(u, U_MAX)
-    return OK, np.array(u)
+        return ENONFINITE, None, None
+    u, hit = _clip(u, U_MAX)
+    return OK, np.array(u), _mask(hit)
 
 
 def npid_init(state, inp):
@@ -726,18 +733,18 @@ def npid_init(state, inp):
 
 
 def npid_step(state, inp, dt):
-    """(code, u) of one step of u = P e + D e' + I int e + N (eq. 34)."""
+    """(code, u, clipped) of one step of u = P e + D e' + I int e + N (eq. 34)."""
     x, int_e, dt = _input(inp), _state(state, "int_e"), _scalar("dt", dt)
     if not (_isfinite(dt) and dt > 0):
-        return EDT, None
+        return EDT, None, None
     if not _finite(*x, int_e):
-        return ENONFINITE, None
+        return ENONFINITE, None, None
     u, step = _kernel_npid(*x, int_e, (dt,))
     if not _finite(u, step):
-        return ENONFINITE, None
+        return ENONFINITE, None, None
     u, hit = _clip(u, U_MAX)
     state.int_e = [i if h else i_next for i, i_next, h in zip(int_e, step, hit)]
-    return OK, np.array(u)
+    return OK, np.array(u), _mask(hit)
 
 
 def dobc_init(state, inp):
@@ -754,21 +761,21 @@ def dobc_init(state, inp):
 
 
 def dobc_step(state, inp, dt):
-    """(code, u) of one step of u = u* - dhat with the observer (eq. 21-27)."""
+    """(code, u, clipped) of one step of u = u* - dhat with the observer (eq. 21-27)."""
     x, z, dt = _input(inp), _state(state, "z"), _scalar("dt", dt)
     if not (_isfinite(dt) and dt > 0):
-        return EDT, None
+        return EDT, None, None
     if not _finite(*x, z):
-        return ENONFINITE, None
+        return ENONFINITE, None, None
     (u,) = (_kernel_dobc(*x, z),)
     if not _finite(u):
-        return ENONFINITE, None
-    u, _ = _clip(u, U_MAX)
+        return ENONFINITE, None, None
+    u, hit = _clip(u, U_MAX)
     (nxt,) = (_kernel_observer(x[0], x[1], z, u, (dt,)),)
     if not _finite(nxt):
-        return ENONFINITE, None
+        return ENONFINITE, None, None
     state.z = nxt
-    return OK, np.array(u)
+    return OK, np.array(u), _mask(hit)
 
 
 def dobc_estimate(state, inp):

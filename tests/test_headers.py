@@ -81,7 +81,7 @@ def _user_file(headers: list[str], runtime: bool) -> str:
                       f"    {ARM}_params params;" if runtime else "",
                       f"    {ARM}_params_default(&params);" if runtime else "",
                       f"    {ARM}_gains({p}in.theta, gp, gd, gi);",
-                      f"    if ({ARM}_mpc_step({p}&in, u) != {ARM.upper()}_OK) return 1;",
+                      f"    if ({ARM}_mpc_step({p}&in, u, NULL) != {ARM.upper()}_OK) return 1;",
                       f"    if ({ARM}_mass_matrix({p}in.theta, mass) != {ARM.upper()}_OK) return 1;",
                       '    printf("%.9g %.9g %.9g %.9g\\n", (double)u[0], (double)u[1], (double)gi[3], (double)mass[1]);',
                       "    return 0;", "}", ""])

@@ -58,14 +58,31 @@ def test_figures_at_a_stated_precision_do_not_carry_the_last_bits():
 
 
 def test_no_module_writes_json_but_through_jsonio():
-    """The kind: a new writer cannot bypass the strict one (json.dump/json.dumps only in jsonio)."""
+    """The kind: a new writer cannot bypass the strict one. In derive/, json.dump/json.dumps
+    are called only in jsonio (under any name the json module is imported as); no module
+    imports dump, dumps or JSONEncoder from json, nor another JSON library."""
     found = []
     for path in sorted((ROOT / "derive").rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        where = f"{path.relative_to(ROOT).as_posix()}"
+        aliases = {"json"}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name == "json":
+                        aliases.add(alias.asname or "json")
+                    elif alias.name.split(".")[0] in ("simplejson", "ujson", "orjson", "rapidjson"):
+                        found.append(f"{where}:{node.lineno} imports {alias.name}")
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                if node.module == "json" and {a.name for a in node.names} & {"dump", "dumps", "JSONEncoder", "*"}:
+                    found.append(f"{where}:{node.lineno} from json import")
+                elif node.module.split(".")[0] in ("simplejson", "ujson", "orjson", "rapidjson"):
+                    found.append(f"{where}:{node.lineno} from {node.module} import")
+        for node in ast.walk(tree):
             if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
                     and node.func.attr in ("dump", "dumps") and isinstance(node.func.value, ast.Name)
-                    and node.func.value.id == "json"):
-                found.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+                    and node.func.value.id in aliases):
+                found.append(f"{where}:{node.lineno}")
     assert found == ["derive/jsonio.py:" + str(_line_of_dumps())], found
 
 
@@ -74,11 +91,27 @@ def _line_of_dumps() -> int:
     return next(i for i, line in enumerate(lines, 1) if "json.dumps(" in line)
 
 
+def _strict(text: str):
+    """Python's own parser, refusing what is not RFC 8259 (NaN, Infinity, -Infinity)."""
+    def refuse(name: str):
+        raise ValueError(f"not RFC 8259: {name}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
 def test_committed_json_files_are_strict():
-    files = sorted((ROOT / "generated").rglob("*.json"))
-    assert len(files) >= 3
-    for path in files:
-        jsonio.loads(path.read_text(encoding="utf-8"))
+    """Every JSON file in generated/ (generate's manifest, simulate's metrics and manifests,
+    sweep's report and manifest) parses with a parser that refuses NaN and Infinity."""
+    files = sorted(p.relative_to(ROOT / "generated").as_posix() for p in (ROOT / "generated").rglob("*.json"))
+    writers = {"glasgow_2link/MANIFEST.json", "glasgow_2link/sim/metrics.json", "glasgow_2link/sim/MANIFEST.json",
+               "glasgow_2link/sweep/sweep.json", "glasgow_2link/sweep/MANIFEST.json"}
+    assert writers <= set(files), files
+    for name in files:
+        text = (ROOT / "generated" / name).read_text(encoding="utf-8")
+        _strict(text)
+        jsonio.loads(text)  # and no key twice
+    with pytest.raises(ValueError, match="not RFC 8259: NaN"):
+        _strict('{"steady_state_error": NaN}')
 
 
 def test_simulate_json_of_a_2s_run_has_null_with_reasons_not_nan(tmp_path, capsys):

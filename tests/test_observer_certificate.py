@@ -256,7 +256,9 @@ def test_tune_prints_the_w_line_and_writes_json(tmp_path, capsys):
     assert main(["tune", "--speed", "10,10", "--json", str(out)]) == 0
     text = capsys.readouterr().out
     assert "certificate: proved" in text and "[controller] w = [0.41" in text
-    doc = __import__("json").loads(out.read_text())
+    from derive import jsonio
+
+    doc = jsonio.loads(out.read_text())  # strict RFC 8259 (issue 10, item 6)
     assert doc["certificate"] == "proved" and doc["box_rad_per_s"] == [10.0, 10.0]
 
 

@@ -143,3 +143,62 @@ def test_bad_sweep_settings_are_one_clear_error_exit_2_nothing_written(tmp_path,
     assert re.search(message, err), err
     assert err.count("derive: error") == 1 and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def _synthetic(factor: float) -> list:
+    """Eight samples of made-up metrics (every figure times ``factor``: another machine's
+    last bits): npid finished, dobc without a steady-state error (a run too short to settle,
+    NaN as run_chunk stores an undefined figure), mpc failed every time."""
+    import math
+
+    from derive.model.sweepspec import METRICS
+    from derive.sim.sweep import SampleResult
+
+    out = []
+    for i in range(8):
+        links = [{m: (1.0 + 0.37 * i + 0.11 * k) * 10.0 ** -(j + 2) * factor for k, m in enumerate(METRICS)}
+                 for j in range(2)]
+        metrics = {"npid": links, "dobc": [dict(link, steady_state_error=math.nan) for link in links]}
+        out.append(SampleResult(i, {"payload_scale": (0.8 + 0.05 * i) * factor}, None, metrics,
+                                {"mpc": "mpc: the controller step returned 1 at t = 3 s"}, None, {}))
+    return out
+
+
+def test_sweep_json_states_its_precision_and_does_not_carry_the_last_bits():
+    """Issue 10, item 9 for sweeps: sweep.json is written like metrics.json (strict JSON,
+    every figure at a stated precision: SWEEP_DIGITS significant digits), so figures that
+    differ in their last bits (1e-12 relative) give the same bytes; an undefined percentile
+    or worst value is null with its reason beside it; summary.md is made from the JSON."""
+    import tomllib
+
+    from derive.cli.sweep import summary_markdown, sweep_data, sweep_json
+    from derive.model.sweepspec import parse_sweep
+    from derive.sim.sweep import SWEEP_DIGITS, summarize
+
+    spec, problems = parse_sweep(tomllib.loads(SWEEP)["sweep"], 2)
+    assert not problems
+    names = ("npid", "dobc", "mpc")
+
+    def report(factor: float) -> dict:
+        return {"arm": "glasgow_2link", "samples": 8, "seed": 11, "duration": 8.0 * factor,
+                  "controllers": list(names), "vary": {}, "criteria": [c.label() for c in spec.criteria],
+                  "results": summarize(_synthetic(factor), spec, names, 2)}
+
+    base = sweep_json(report(1.0))
+    assert sweep_json(report(1 + 1e-12)) == base == sweep_json(report(1 - 1e-12))
+    assert SWEEP_DIGITS == 6
+    doc = jsonio.loads(base)
+    assert doc["_precision"] == "6 significant digits"
+    npid = doc["results"]["npid"]["percentiles"]["rms_error"][0]
+    assert npid["max"] == 0.0359  # (1 + 0.37 * 7) * 1e-2, at 6 significant digits
+    assert npid["p50"] == 0.02295  # the median of the eight samples: (1 + 0.37 * 3.5) * 1e-2
+    sse = doc["results"]["dobc"]["percentiles"]["steady_state_error"][1]
+    assert sse["p50"] is None and sse["p50_undefined"] == "no finished run of dobc gave this figure"
+    mpc = doc["results"]["mpc"]
+    assert mpc["failed_runs"] == 8 and mpc["worst"]["value"] is None
+    assert mpc["worst"]["value_undefined"] == "the run failed: mpc: the controller step returned 1 at t = 3 s"
+    assert doc["results"]["dobc"]["worst"]["value_undefined"] == "steady_state_error undefined in this run"
+    assert jsonio.loads(jsonio.dumps(sweep_data(report(1.0)))) == doc  # summary.md's data is the JSON's
+    md = summary_markdown("glasgow_2link", sweep_data(report(1.0)))
+    assert "| dobc | steady_state_error | 2 | n/a | n/a | n/a | n/a |" in md
+    assert md.index("| npid | steady_state_error |") < md.index("| dobc | steady_state_error |")  # the arm's order

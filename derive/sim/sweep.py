@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from derive.errors import DeriveError
-from derive.jsonio import Undefined
+from derive.jsonio import Undefined, rounded
 from derive.model.simspec import SimSettings
 from derive.model.spec import Arm
 from derive.model.sweepspec import METRICS, PARAMETERS, Criterion, Distribution, SweepSpec
@@ -145,12 +145,17 @@ def run_sweep(payload: Payload, base: SimSettings, spec: SweepSpec, samples: int
     return sorted(results, key=lambda r: r.index)
 
 
-def sig(x: float | None, digits: int = 6) -> float | None:
-    """``x`` rounded to ``digits`` significant digits (the stated precision of
-    sweep reports: identical across machines whose last bits differ)."""
+# Figures of sweep reports at a stated precision, written like metrics.json (issue 10, item 9):
+# a run's last bits depend on the CPU and libm, the committed sweep.json must not.
+SWEEP_DIGITS = 6
+
+
+def sig(x: float | None, digits: int = SWEEP_DIGITS) -> float | None:
+    """``x`` rounded to ``digits`` significant digits (jsonio.rounded, as sweep.json is
+    written); None for None or a non-finite x."""
     if x is None or not math.isfinite(x):
         return None
-    return float(f"{x:.{digits - 1}e}")
+    return rounded(x, digits)
 
 
 def criterion_value(c: Criterion, links: list[dict]) -> float:
@@ -174,8 +179,8 @@ def summarize(results: list[SampleResult], spec: SweepSpec, names: tuple[str, ..
                 vals = np.array([r.metrics[name][i][metric] for r in ok], dtype=float)
                 vals = vals[np.isfinite(vals)]
                 if len(vals) == 0:
-                    rows.append({"link": i + 1, "p5": None, "p50": None, "p95": None, "max": None,
-                                 "note": "undefined: no finished run with this figure"})
+                    why = Undefined(f"no finished run of {name} gave this figure")
+                    rows.append({"link": i + 1, "p5": why, "p50": why, "p95": why, "max": why})
                     continue
                 p5, p50, p95 = np.percentile(vals, [5, 50, 95])
                 rows.append({"link": i + 1, "p5": sig(p5), "p50": sig(p50), "p95": sig(p95), "max": sig(vals.max())})
@@ -193,10 +198,11 @@ def summarize(results: list[SampleResult], spec: SweepSpec, names: tuple[str, ..
         value, _, worst = max(ranked, key=lambda x: (x[0], x[1]))
         entry["worst"] = {"sample": worst.index, "metric": first.metric,
                           "links": "every" if first.link is None else first.link,
-                          "value": sig(value), "parameters": {k: _round_drawn(v) for k, v in worst.drawn.items()},
+                          "value": sig(value) if math.isfinite(value) else Undefined(
+                              f"the run failed: {worst.failures[name]}" if name in worst.failures
+                              else f"{first.metric} undefined in this run"),
+                          "parameters": {k: _round_drawn(v) for k, v in worst.drawn.items()},
                           "failed": worst.failures.get(name), "file": f"worst_{name}.toml"}
-        if value == math.inf:
-            entry["worst"]["value_note"] = "the run failed"
         out[name] = entry
     return out
 

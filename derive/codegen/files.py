@@ -44,7 +44,7 @@ def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None 
     return {
         **library_files(d, real, mode, v),
         f"c/{a}_selftest.c": render("c/selftest.c.jinja", v=v, t=t),
-        "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v),
+        "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v, version=metadata.version("derive")),
         **plant_c_files(d, v, mode),
     }
 

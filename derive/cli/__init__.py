@@ -10,8 +10,12 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-from derive.errors import DeriveError
+from derive.errors import DeriveError, SpecError
+
+if TYPE_CHECKING:
+    from derive.model.spec import Arm
 
 # command -> (module, help)
 COMMANDS = {
@@ -54,6 +58,25 @@ def add_arm_argument(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("arm", nargs="?", default=None,
                         help=f"arm file, or the name of a packaged arm (default {DEFAULT_ARM})")
+    parser.add_argument("--strict", action="store_true",
+                        help="an implausible value (a likely unit mistake: derive.model.plausibility) is an "
+                             "error (exit 2), not a warning")
+
+
+def load_cli_arm(args: argparse.Namespace) -> Arm:
+    """``args.arm`` loaded (derive.model.spec.load_arm), each plausibility warning printed on
+    stderr as ``derive: warning: <field>: expected ..., got ...``; with ``args.strict`` they
+    are one SpecError instead (exit 2, nothing done)."""
+    from derive.model.plausibility import plausibility
+    from derive.model.spec import load_arm
+
+    arm = load_arm(args.arm)
+    problems = plausibility(arm)
+    if problems and getattr(args, "strict", False):
+        raise SpecError(arm.source, problems, title="implausible arm description (--strict)")
+    for p in problems:
+        print(f"derive: warning: {p}", file=sys.stderr)
+    return arm
 
 
 def report_warnings(derivation) -> None:

@@ -87,13 +87,13 @@ def run(args: argparse.Namespace) -> int:
     from derive.proofs.report import render_json, render_markdown, render_text
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
 
     start = time.perf_counter()
     d = None
     results: tuple[Result, ...] = ()
     if args.arm is not None or not args.paper:
-        d = derive(load_arm(args.arm))
+        d = derive(load_cli_arm(args))
         report_warnings(d)
         results = check(d, project_obligations(), show=True)
     if args.paper:

@@ -36,14 +36,14 @@ def run(args) -> int:
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
     from derive.fmu import check_options, controller_fmu, plant_fmu, write_fmus
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
 
     options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time)
     out = Path(args.out)
     if out.exists() and not out.is_dir():  # before any work: one clear error, nothing written
         from derive.errors import EmitError
         raise EmitError(f"--out {out}: expected a folder, got a file")
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     d = derive(arm)
     report_warnings(d)
     cc = args.cc or os.environ.get("CC") or "cc"

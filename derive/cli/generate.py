@@ -24,14 +24,13 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from derive.cli import report_warnings
     from derive.control.pipeline import derive
-    from derive.model.spec import load_arm
-
+    from derive.cli import load_cli_arm
     from derive.codegen.files import GENERATE_STAGES
     from derive.control.ranges import check_ranges
     from derive.control.sampling import summary, too_slow
     from derive.progress import progress
 
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     with progress(total=2 + len(GENERATE_STAGES), desc=f"generate {arm.name}", unit="stage") as bar:
         bar.set_postfix_str("derivation")
         d = derive(arm)

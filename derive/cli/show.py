@@ -234,11 +234,11 @@ def run(args) -> int:
     import sys
 
     from derive.control.pipeline import derive
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
 
     from derive.cli import report_warnings
 
-    d = derive(load_arm(args.arm))
+    d = derive(load_cli_arm(args))
     report_warnings(d)
     if args.at is not None:
         from derive.cli.pose import parse_pose, pose_text

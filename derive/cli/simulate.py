@@ -152,7 +152,7 @@ def with_voltage_limits(arm, text: str):
 
 def run(args) -> int:
     from derive.codegen.emit import write_tree
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
 
     names = [c.strip() for c in args.controllers.split(",") if c.strip()]
     unknown = [c for c in names if c not in VARIANTS]
@@ -165,7 +165,7 @@ def run(args) -> int:
     if json_path is not None and not json_path.parent.is_dir():  # fail before minutes of simulation
         raise DeriveError(f"--json {json_path}: expected a file in an existing folder, "
                           f"got a missing folder {json_path.parent}")
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     if args.voltage_limits is not None:
         arm = with_voltage_limits(arm, args.voltage_limits)
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating

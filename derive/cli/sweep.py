@@ -147,14 +147,14 @@ def _dist(dist) -> dict:
 def run(args) -> int:
     from derive.codegen.emit import write_tree
     from derive.control.pipeline import derive
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
     from derive.progress import progress
     from derive.sim.compiled import build
     from derive.sim.simulate import VARIANTS
     from derive.sim.sweep import Payload, run_sweep, summarize, worst_settings
     from derive.sim.sweep_plots import envelope_figure, histogram_figure
 
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     spec = arm.sweep
     problems = []
     if spec is None:

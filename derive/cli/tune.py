@@ -44,10 +44,10 @@ def run(args: argparse.Namespace) -> int:
     from derive.control.certificate import inertia_model
     from derive.control.pipeline import derive
     from derive.control.synthesis import synthesise
-    from derive.model.spec import load_arm
+    from derive.cli import load_cli_arm
     from derive.codegen.emit import write_file as write_text
 
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     ctl = arm.controller
     if args.speed is not None:
         box = _speeds(args.speed, arm.n)

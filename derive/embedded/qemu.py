@@ -299,12 +299,13 @@ def run(args: argparse.Namespace) -> int:
     from derive.codegen.kernels import ParamsMode
     from derive.control.pipeline import derive
     from derive.control.ranges import check_ranges
-    from derive.model.spec import load_arm, resolve_arm_path
+    from derive.cli import load_cli_arm
+    from derive.model.spec import resolve_arm_path
     from derive.progress import progress
 
     check_toolchain()
     targets = [t for t in TARGETS if args.target in ("all", t.name)]
-    arm = load_arm(args.arm)
+    arm = load_cli_arm(args)
     d = derive(arm)
     report_warnings(d)
     for real in sorted({r for t in targets for r in t.reals}):

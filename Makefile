@@ -47,6 +47,7 @@ fuzz: $(STAMP) system-deps
 	@echo "make fuzz: hypothesis seed $(SEED) (repeat with: make fuzz SEED=$(SEED))"
 	DERIVE_HYPOTHESIS_PROFILE=fuzz DERIVE_FUZZ_FACTOR=$(FUZZ_FACTOR) \
 	    $(PY) -m pytest -q -p no:cacheprovider --hypothesis-seed=$(SEED) $(FUZZ_TESTS)
+	$(PY) -m pytest -q -p no:cacheprovider -m slow
 
 bench: $(STAMP)
 	$(PY) -m benchmarks

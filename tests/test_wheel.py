@@ -12,6 +12,12 @@ current environment's dependencies (linked in a folder without derive itself, so
 dependency pins are resolved for real). There, from an empty folder, ``derive --version``
 names the version and ``derive generate`` writes the default arm, whose C compiles and
 passes its own self-test.
+
+``make fuzz`` (marker ``slow``, about two minutes) also installs the wheel as a user without
+network would: ``pip install --no-index --find-links WHEELHOUSE derive`` into a bare virtual
+environment, every dependency resolved by pip from a local folder of wheels (the
+environment's installed distributions repacked by pypa's ``wheel pack``; urdf-parser-py,
+published as an sdist only, among them), then ``derive --version`` and ``derive generate``.
 """
 from __future__ import annotations
 
@@ -102,6 +108,7 @@ def test_the_wheel_installs_offline_and_generates_compiles_and_self_tests(wheel,
     (site / "dependencies.pth").write_text(str(_dependencies_only(tmp_path)) + "\n")
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "PIP_"))}
     env["PIP_NO_INDEX"] = "1"  # no network, no index: the dependencies are there already
+    env["PIP_CONFIG_FILE"] = os.devnull  # nor the machine's pip configuration (find-links, constraints)
     _run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-index", "--no-cache-dir",
           str(wheel)], env=env)
     work = tmp_path / "empty"
@@ -120,4 +127,85 @@ def test_the_wheel_installs_offline_and_generates_compiles_and_self_tests(wheel,
     assert re.search(r"^(\d+) passed, 0 failed$", out, re.M), out
     # the generated files are the committed ones: the wheel's templates are the repository's
     for name in ("glasgow_2link.h", "glasgow_2link.c", "glasgow_2link_kernels.c"):
+        assert (c_dir / name).read_bytes() == (ROOT / "generated" / "glasgow_2link" / "c" / name).read_bytes(), name
+
+
+def _runtime_distributions() -> list[metadata.Distribution]:
+    """derive's runtime dependencies and theirs, as installed here (markers evaluated
+    without extras: what ``pip install derive`` resolves)."""
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    found: dict[str, metadata.Distribution] = {}
+    todo = [Requirement(r) for r in metadata.requires("derive") or []]
+    while todo:
+        req = todo.pop()
+        if req.marker is not None and not req.marker.evaluate({"extra": ""}):
+            continue
+        name = canonicalize_name(req.name)
+        if name not in found:
+            found[name] = metadata.distribution(req.name)
+            todo += [Requirement(r) for r in found[name].requires or []]
+    return [found[k] for k in sorted(found)]
+
+
+def _repack(dist: metadata.Distribution, staging: Path, wheelhouse: Path) -> None:
+    """A wheel of an installed distribution, packed by pypa's ``wheel pack`` from the files
+    its RECORD lists (an installed distribution is an unpacked wheel; console scripts come
+    back from entry_points.txt on install). urdf-parser-py is published as an sdist only:
+    this is how its wheel gets into the wheelhouse without a network."""
+    root = staging / f"{dist.metadata['Name']}-{dist.version}"
+    info = None
+    for f in dist.files or []:
+        parts = f.parts
+        if parts[0] == ".." or "__pycache__" in parts:
+            continue  # scripts in bin/ (regenerated), bytecode (recompiled)
+        if parts[0].endswith(".dist-info"):
+            info = parts[0]
+            if parts[-1] in ("RECORD", "INSTALLER", "REQUESTED", "direct_url.json"):
+                continue
+        source = Path(dist.locate_file(f))
+        target = root / f
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.link(source, target) if source.stat().st_dev == staging.stat().st_dev else shutil.copy2(source, target)
+    assert info is not None and (root / info / "WHEEL").is_file(), (dist.metadata["Name"], info)
+    _run([sys.executable, "-m", "wheel", "pack", "-d", str(wheelhouse), str(root)])
+
+
+@pytest.mark.slow
+def test_the_wheel_installs_from_a_local_wheelhouse_with_no_index_and_generates(wheel, tmp_path):
+    """``pip install --no-index --find-links WHEELHOUSE derive`` into a fresh venv: pip
+    resolves every dependency pin for real, from wheels only (the environment's installed
+    distributions repacked, urdf-parser-py's among them); then ``derive --version`` and
+    ``derive generate`` of the default arm run from the installed wheel (make fuzz; ~2 min)."""
+    wheelhouse, staging = tmp_path / "wheelhouse", tmp_path / "staging"
+    wheelhouse.mkdir()
+    staging.mkdir()
+    shutil.copy2(wheel, wheelhouse)
+    dists = _runtime_distributions()
+    assert {"casadi", "sympy", "urdf-parser-py", "jinja2"} <= {d.metadata["Name"].lower().replace("_", "-")
+                                                            for d in dists}
+    for dist in dists:
+        _repack(dist, staging, wheelhouse)
+    assert len(list(wheelhouse.glob("*.whl"))) == len(dists) + 1
+    venv = tmp_path / "venv"
+    _run([sys.executable, "-m", "venv", "--without-pip", str(venv)])
+    python = venv / "bin" / "python"
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "PIP_"))}
+    env["PIP_CONFIG_FILE"] = os.devnull  # only the wheelhouse: not the machine's find-links or constraints
+    _run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-index", "--no-cache-dir",
+          "--find-links", str(wheelhouse), "derive"], env=env)
+    frozen = _run([sys.executable, "-m", "pip", "--python", str(python), "list", "--format=freeze"], env=env).stdout
+    assert f"derive=={metadata.version('derive')}" in frozen.split() and "urdf_parser_py==0.0.4" in frozen.replace(
+        "-", "_").split(), frozen
+    work = tmp_path / "empty"
+    work.mkdir()
+    where = _run([str(python), "-c", "import derive, casadi; print(derive.__file__, casadi.__file__)"],
+                 cwd=work, env=env).stdout.split()
+    assert all(w.startswith(str(venv)) for w in where), where  # installed from the wheelhouse, nothing else
+    version = _run([str(venv / "bin" / "derive"), "--version"], cwd=work, env=env).stdout
+    assert version.strip() == f"derive {metadata.version('derive')}"
+    _run([str(venv / "bin" / "derive"), "generate", "--out", "out"], cwd=work, env=env)
+    c_dir = work / "out" / "glasgow_2link" / "c"
+    for name in ("glasgow_2link.h", "glasgow_2link.c", "glasgow_2link_kernels.c", "glasgow_2link_plant.c"):
         assert (c_dir / name).read_bytes() == (ROOT / "generated" / "glasgow_2link" / "c" / name).read_bytes(), name

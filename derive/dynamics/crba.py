@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dynamics.spatial import (Mat, Vec, add, cross, dot, mat, mat_add, scale, shift_inertia, vec,
+from derive.dynamics.spatial import (Mat, Vec, add, cross, dot, mat, mat_add, mul, scale, shift_inertia, vec,
                                      JointFrame)
 from derive.model.chain import Body
 
@@ -40,11 +40,11 @@ def body_composite(body: Body) -> Composite:
     return Composite(sp.sympify(body.mass), vec(body.first_moment), mat(body.inertia))
 
 
-def composites(bodies: Sequence[Body], frames: Sequence[JointFrame]) -> list[Composite]:
+def composites(bodies: Sequence[Composite], frames: Sequence[JointFrame]) -> list[Composite]:
     """Composite body of every joint, tip to base: body j plus composite j+1
     moved into F_j (rotated by R_{j+1}, shifted by p_{j+1})."""
     n = len(bodies)
-    out: list[Composite] = [body_composite(b) for b in bodies]
+    out: list[Composite] = list(bodies)
     for j in reversed(range(n - 1)):
         child, f = out[j + 1], frames[j + 1]
         h_child = f.to_parent(child.h)              # first moment about F_{j+1}'s origin, F_j axes
@@ -67,14 +67,26 @@ def _project(f: JointFrame, force: Vec, moment: Vec) -> sp.Expr:
     return dot(f.axis, moment) if f.rotates else dot(f.axis, force)
 
 
-def crba(bodies: Sequence[Body], frames: Sequence[JointFrame],
-         reflected: Sequence[sp.Expr] | None = None) -> sp.Matrix:
-    """J(q) (n x n, symmetric) of the chain; ``frames[i]`` is joint i at q_i.
+def gravity_torques(comp: Sequence[Composite], frames: Sequence[JointFrame], gravity: Vec) -> sp.Matrix:
+    """g(q) (n x 1) from the composite bodies: gravity on composite i exerts the
+    moment h_i x gravity and the force M_i gravity at F_i's origin, so
+    g_i = a_i . (h_i x gamma_i) (revolute) or M_i a_i . gamma_i (prismatic),
+    gamma_i = -gravity in F_i's axes (the base's upward acceleration)."""
+    gamma = scale(-1, gravity)
+    out = []
+    for c, f in zip(comp, frames):
+        gamma = f.to_child(gamma)
+        out.append(dot(f.axis, cross(c.h, gamma)) if f.rotates else mul(c.M, dot(f.axis, gamma)))
+    return sp.Matrix(out)
 
-    ``reflected``: added to J's diagonal (a motor's gr^2 Jm), or None.
+
+def crba(comp: Sequence[Composite], frames: Sequence[JointFrame],
+         reflected: Sequence[sp.Expr] | None = None) -> sp.Matrix:
+    """J(q) (n x n, symmetric) of the chain from its :func:`composites`;
+    ``frames[i]`` is joint i at q_i; ``reflected``: added to J's diagonal (a
+    motor's gr^2 Jm), or None.
     """
-    n = len(bodies)
-    comp = composites(bodies, frames)
+    n = len(comp)
     J = sp.zeros(n, n)
     for j in range(n):
         force, moment = _unit_wrench(comp[j], frames[j])

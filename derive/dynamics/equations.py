@@ -17,8 +17,9 @@ from functools import cached_property
 import sympy as sp
 
 from derive.dynamics.coriolis import coriolis_matrix
-from derive.dynamics.crba import crba
+from derive.dynamics.crba import composites, crba, gravity_torques
 from derive.dynamics.motors import motor_terms
+from derive.dynamics.regroup import base_parameters
 from derive.dynamics.rnea import rnea
 from derive.dynamics.spatial import ZERO, JointFrame, vec
 from derive.model.chain import Chain
@@ -69,7 +70,8 @@ class Dynamics:
     @cached_property
     def coriolis(self) -> sp.Matrix:
         """n x n Coriolis matrix C(q, q') (Christoffel symbols), computed on first use."""
-        return coriolis_matrix(self.J, self.sym.theta, self.sym.dtheta)
+        bodies = base_parameters(self.chain.bodies, self.chain.joints)
+        return coriolis_matrix(bodies, frames(self.chain, self.sym.theta), self.sym.dtheta)
 
 
 def frames(chain: Chain, q) -> tuple[JointFrame, ...]:
@@ -88,9 +90,11 @@ def chain_dynamics(chain: Chain) -> Dynamics:
     fr = frames(chain, s.theta)
     grav = vec(chain.gravity)
     zero = [ZERO] * n
-    J = crba(chain.bodies, fr, motors.reflected)
-    bias = rnea(chain.bodies, fr, s.dtheta, zero, grav)
-    gravity = rnea(chain.bodies, fr, zero, zero, grav)
+    bodies = base_parameters(chain.bodies, chain.joints)
+    comp = composites(bodies, fr)
+    J = crba(comp, fr, motors.reflected)
+    gravity = gravity_torques(comp, fr, grav)
+    bias = rnea(bodies, fr, s.dtheta, zero, grav)
     G = bias + motors.damping * sp.Matrix(s.dtheta)
     return Dynamics(sym=s, chain=chain, J=J, bias=bias, damping=motors.damping, G=G, B=motors.B,
                     gravity=gravity)

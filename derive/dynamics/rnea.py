@@ -23,31 +23,31 @@ from collections.abc import Sequence
 
 import sympy as sp
 
-from derive.dynamics.crba import body_composite
-from derive.dynamics.spatial import ZERO, ZERO_VEC, Vec, add, cross, dot, scale, JointFrame
-from derive.model.chain import Body
+from derive.dynamics.crba import Composite
+from derive.dynamics.spatial import ZERO, ZERO_VEC, Mat, Vec, add, cross, dot, matvec, scale, spin_matrix, JointFrame
 
 
 def _is_zero(v: Vec) -> bool:
     return all(x == 0 for x in v)
 
 
-def rnea(bodies: Sequence[Body], frames: Sequence[JointFrame], dq: Sequence[sp.Expr],
+def rnea(bodies: Sequence[Composite], frames: Sequence[JointFrame], dq: Sequence[sp.Expr],
          ddq: Sequence[sp.Expr], gravity: Vec) -> sp.Matrix:
     """tau (n x 1) = J_rigid(q) q'' + C(q, q') q' + g(q) for the rigid chain
-    (no motor terms); ``frames[i]`` is joint i at q_i, ``gravity`` the free-fall
-    acceleration in the base frame [m/s^2]."""
+    (no motor terms); ``bodies[i]`` is body i in F_i (mass, first moment,
+    inertia about the origin), ``frames[i]`` joint i at q_i, ``gravity`` the
+    free-fall acceleration in the base frame [m/s^2]."""
     n = len(bodies)
     w: Vec = ZERO_VEC
     al: Vec = ZERO_VEC
     a: Vec = scale(-1, gravity)
     forces: list[Vec] = []
     moments: list[Vec] = []
+    U: Mat | None = None
     for i in range(n):
         f = frames[i]
-        r = f.p
-        if not (_is_zero(al) and _is_zero(w)):   # acceleration of the point at F_i's origin
-            a = add(a, add(cross(al, r), cross(w, cross(w, r))))
+        if U is not None:   # acceleration of the point at F_i's origin, fixed in body i-1
+            a = add(a, matvec(U, f.p))
         w, al, a = f.to_child(w), f.to_child(al), f.to_child(a)
         qd, qdd = dq[i], ddq[i]
         if f.rotates:
@@ -55,10 +55,11 @@ def rnea(bodies: Sequence[Body], frames: Sequence[JointFrame], dq: Sequence[sp.E
             w = add(w, scale(qd, f.axis))
         else:
             a = add(a, add(scale(qdd, f.axis), scale(2 * qd, cross(w, f.axis))))
-        c = body_composite(bodies[i])
+        U = spin_matrix(w, al)
+        c = bodies[i]
         Iw = tuple(dot(row, w) for row in c.I)
         Ial = tuple(dot(row, al) for row in c.I)
-        forces.append(add(scale(c.M, a), add(cross(al, c.h), cross(w, cross(w, c.h)))))
+        forces.append(add(scale(c.M, a), matvec(U, c.h)))
         moments.append(add(Ial, add(cross(w, Iw), cross(c.h, a))))  # type: ignore[arg-type]
     tau = [ZERO] * n
     F: Vec = ZERO_VEC

@@ -125,7 +125,22 @@ def shift_inertia(inertia: Mat, mass: sp.Expr, h: Vec, r: Vec) -> Mat:
     return tuple(tuple(row) for row in out)  # type: ignore[return-value]
 
 
-def _unit_axis(axis: Vec) -> int | None:
+def spin_matrix(w: Vec, al: Vec) -> Mat:
+    """U = S(al) + S(w) S(w), so that U r = al x r + w x (w x r) (the acceleration
+    of a point at r in a frame turning at w, al; Khalil and Kleinfinger's U_j).
+
+    One U serves both the acceleration of the next joint's origin and the
+    body's force U h, sharing the products w_i w_j.
+    """
+    x, y, z = w
+    xx, yy, zz = mul(x, x), mul(y, y), mul(z, z)
+    xy, xz, yz = mul(x, y), mul(x, z), mul(y, z)
+    return ((-(yy + zz), xy - al[2], xz + al[1]),
+            (xy + al[2], -(xx + zz), yz - al[0]),
+            (xz - al[1], yz + al[0], -(xx + yy)))
+
+
+def unit_axis(axis: Vec) -> int | None:
     """k when the axis is +-e_k exactly, else None."""
     nonzero = [k for k in range(3) if axis[k] != 0]
     if len(nonzero) == 1 and abs(axis[nonzero[0]]) == 1:
@@ -138,7 +153,7 @@ def axis_rotation(axis: Vec, angle: sp.Expr) -> Mat:
     R = c 1 + s [a]_x + (1 - c) a a^T), with exact 0 and 1 entries when the
     axis is a coordinate axis (a rotation about -y is one about +y by -angle)."""
     c, s = sp.cos(angle), sp.sin(angle)
-    k = _unit_axis(axis)
+    k = unit_axis(axis)
     if k is not None:
         s = s if axis[k] == 1 else -s
         i, j = (k + 1) % 3, (k + 2) % 3
@@ -152,6 +167,30 @@ def axis_rotation(axis: Vec, angle: sp.Expr) -> Mat:
     skew = ((ZERO, -a[2], a[1]), (a[2], ZERO, -a[0]), (-a[1], a[0], ZERO))
     return tuple(tuple((c if i == j else ZERO) + mul(s, skew[i][j]) + mul(v, mul(a[i], a[j])) for j in range(3))
                  for i in range(3))  # type: ignore[return-value]
+
+
+def axis_congruence(k: int, angle: sp.Expr, inertia: Mat) -> Mat:
+    """R I R^T for R the rotation by ``angle`` about e_k, with fewer products
+    than R (I R^T): with (i, j, k) cyclic, u = I_ii - I_jj, t = s^2 u + 2 s c I_ij,
+
+        I'_ii = I_ii - t,   I'_jj = I_jj + t,   I'_ij = s c u + (c^2 - s^2) I_ij,
+        I'_ik = c I_ik - s I_jk,   I'_jk = s I_ik + c I_jk,   I'_kk = I_kk
+
+    (no halves, which SymPy would distribute over the sums they multiply).
+    """
+    c, s = sp.cos(angle), sp.sin(angle)
+    i, j = (k + 1) % 3, (k + 2) % 3
+    I = inertia
+    out = [[ZERO] * 3 for _ in range(3)]
+    out[k][k] = I[k][k]
+    out[i][k] = out[k][i] = mul(c, I[i][k]) - mul(s, I[j][k])
+    out[j][k] = out[k][j] = mul(s, I[i][k]) + mul(c, I[j][k])
+    u = I[i][i] - I[j][j]
+    sc = s * c
+    t = mul(s * s, u) + mul(2 * sc, I[i][j])
+    out[i][i], out[j][j] = I[i][i] - t, I[j][j] + t
+    out[i][j] = out[j][i] = mul(sc, u) + mul(c * c - s * s, I[i][j])
+    return tuple(tuple(row) for row in out)  # type: ignore[return-value]
 
 
 def _is_identity(m: Mat) -> bool:
@@ -176,6 +215,8 @@ class JointFrame:
     joint_R: Mat
     p: Vec
     _origin_identity: bool
+    _axis_index: int | None = None
+    _angle: sp.Expr = ZERO
 
     @staticmethod
     def of(joint: Joint, q: sp.Expr) -> "JointFrame":
@@ -185,7 +226,9 @@ class JointFrame:
         rotates = joint.type is not JointType.PRISMATIC
         identity = _is_identity(R0)
         if rotates:
-            return JointFrame(True, axis, R0, p0, axis_rotation(axis, q), p0, identity)
+            k = unit_axis(axis)
+            angle = q if k is None or axis[k] == 1 else -q
+            return JointFrame(True, axis, R0, p0, axis_rotation(axis, q), p0, identity, k, angle)
         slide = scale(q, axis) if identity else scale(q, matvec(R0, axis))
         eye = ((ONE, ZERO, ZERO), (ZERO, ONE, ZERO), (ZERO, ZERO, ONE))
         return JointFrame(False, axis, R0, p0, eye, add(p0, slide), identity)  # type: ignore[arg-type]
@@ -211,5 +254,10 @@ class JointFrame:
 
     def inertia_to_parent(self, inertia: Mat) -> Mat:
         """R I R^T: a symmetric tensor of F_i in F_{i-1}'s axes."""
-        out = inertia if not self.rotates else congruence(self.joint_R, inertia)
+        if not self.rotates:
+            out = inertia
+        elif self._axis_index is not None:
+            out = axis_congruence(self._axis_index, self._angle, inertia)
+        else:
+            out = congruence(self.joint_R, inertia)
         return out if self._origin_identity else congruence(self.origin_R, out)

@@ -1,13 +1,18 @@
 """Arm dynamics J(q) q'' + G(q, q') = B (u + d) of any serial chain (eq. 11-12).
 
-The code is built from the recursive form: J by the composite-rigid-body
-algorithm (:mod:`derive.dynamics.crba`), the bias (Coriolis, centrifugal and
-gravity torques) and the gravity vector by the recursive Newton-Euler
-algorithm (:mod:`derive.dynamics.rnea`) over the :class:`derive.model.chain.Chain`,
-plus the motor terms (:mod:`derive.dynamics.motors`). The reference it is
-proved equal to is the Euler-Lagrange form of :mod:`derive.dynamics.lagrange`.
-Everything is in the chain's parameter symbols (so generated code may take
-them at run time); :attr:`Dynamics.values` gives their exact values.
+The code is built from the recursive form over the arm's
+:class:`derive.model.chain.Chain`, in its base parameters
+(:mod:`derive.dynamics.regroup`): J by the composite-rigid-body algorithm and
+g(q) from the same composite bodies (:mod:`derive.dynamics.crba`), the bias
+(Coriolis, centrifugal and gravity forces) by the recursive Newton-Euler
+algorithm (:mod:`derive.dynamics.rnea`), the Coriolis matrix on demand
+(:mod:`derive.dynamics.coriolis`), plus the motor terms
+(:mod:`derive.dynamics.motors`). The reference it is proved equal to is the
+Euler-Lagrange form (:func:`lagrange_reference`). Everything is in the
+chain's parameter symbols (generated code may take them at run time);
+:attr:`Dynamics.values` gives their exact values. Entries are shared
+subexpressions (a DAG): never expand or simplify them whole; walk them with
+:mod:`derive.dynamics.program`.
 """
 from __future__ import annotations
 
@@ -17,12 +22,15 @@ from functools import cached_property
 import sympy as sp
 
 from derive.dynamics.coriolis import coriolis_matrix
-from derive.dynamics.crba import composites, crba, gravity_torques
+from derive.dynamics.crba import Composite, composites, crba, gravity_torques
+from derive.dynamics.lagrange import lagrange_equations, reference_ring
 from derive.dynamics.motors import motor_terms
+from derive.dynamics.program import dag_xreplace
 from derive.dynamics.regroup import base_parameters
 from derive.dynamics.rnea import rnea
-from derive.dynamics.spatial import ZERO, JointFrame, vec
+from derive.dynamics.spatial import ZERO, ZERO_VEC, JointFrame, vec
 from derive.model.chain import Chain
+from derive.model.spec import Arm
 from derive.model.symbols import JointSymbols
 
 
@@ -34,9 +42,9 @@ class Dynamics:
     bias: n x 1 Coriolis, centrifugal and gravity forces [N m or N];
     gravity: n x 1 g(q); damping: n x n motor and viscous damping;
     G = bias + damping q' (n x 1); B: n x n input matrix (eq. 12);
-    coriolis: n x n C(q, q') (Christoffel), computed on first use, with
-    coriolis q' = bias - gravity. ``sym.theta`` are the joint coordinates q
-    (an angle [rad] for a revolute joint, a displacement [m] for a prismatic one).
+    reflected: the n rotor inertias gr^2 Jm on J's diagonal. ``sym.theta``
+    are the joint coordinates q (an angle [rad] for a revolute or continuous
+    joint, a displacement [m] for a prismatic one).
     """
 
     sym: JointSymbols
@@ -47,6 +55,7 @@ class Dynamics:
     G: sp.Matrix
     B: sp.Matrix
     gravity: sp.Matrix
+    reflected: tuple[sp.Expr, ...]
 
     @property
     def n(self) -> int:
@@ -59,19 +68,34 @@ class Dynamics:
 
     @property
     def subs(self) -> dict[sp.Symbol, sp.Rational]:
-        """symbol -> exact value, for ``expr.xreplace``."""
+        """symbol -> exact value, for ``xreplace``."""
         return dict(self.values)
 
     @property
     def angles(self) -> tuple[sp.Symbol, ...]:
-        """The coordinates of the revolute and continuous joints (those under sin/cos)."""
+        """The coordinates under sin/cos: those of the revolute and continuous joints."""
         return tuple(q for q, j in zip(self.sym.theta, self.chain.joints) if j.type.rotates)
 
     @cached_property
+    def frames(self) -> tuple[JointFrame, ...]:
+        """Every joint's transform at q = sym.theta."""
+        return frames(self.chain, self.sym.theta)
+
+    @cached_property
+    def bodies(self) -> tuple[Composite, ...]:
+        """The bodies in base parameters (what the recursions use)."""
+        return base_parameters(self.chain.bodies, self.chain.joints)
+
+    @cached_property
     def coriolis(self) -> sp.Matrix:
-        """n x n Coriolis matrix C(q, q') (Christoffel symbols), computed on first use."""
-        bodies = base_parameters(self.chain.bodies, self.chain.joints)
-        return coriolis_matrix(bodies, frames(self.chain, self.sym.theta), self.sym.dtheta)
+        """n x n Coriolis matrix C(q, q') (Christoffel-consistent: J' - 2C is
+        skew-symmetric and C q' = bias - gravity), computed on first use."""
+        return coriolis_matrix(self.bodies, self.frames, self.sym.dtheta)
+
+    @cached_property
+    def velocity_bias(self) -> sp.Matrix:
+        """n x 1 C(q, q') q': the Coriolis and centrifugal forces alone (RNEA without gravity)."""
+        return rnea(self.bodies, self.frames, self.sym.dtheta, [ZERO] * self.n, ZERO_VEC)
 
 
 def frames(chain: Chain, q) -> tuple[JointFrame, ...]:
@@ -80,7 +104,7 @@ def frames(chain: Chain, q) -> tuple[JointFrame, ...]:
 
 
 def chain_dynamics(chain: Chain) -> Dynamics:
-    """J (CRBA), bias and g (RNEA), motor terms of ``chain`` (eq. 11-12).
+    """J (CRBA), g (composites), bias (RNEA) and motor terms of ``chain`` (eq. 11-12).
 
     Raises DerivationError when the chain does not have one actuator per joint.
     """
@@ -89,12 +113,46 @@ def chain_dynamics(chain: Chain) -> Dynamics:
     motors = motor_terms(chain.actuators, n)
     fr = frames(chain, s.theta)
     grav = vec(chain.gravity)
-    zero = [ZERO] * n
     bodies = base_parameters(chain.bodies, chain.joints)
     comp = composites(bodies, fr)
     J = crba(comp, fr, motors.reflected)
     gravity = gravity_torques(comp, fr, grav)
-    bias = rnea(bodies, fr, s.dtheta, zero, grav)
+    bias = rnea(bodies, fr, s.dtheta, [ZERO] * n, grav)
     G = bias + motors.damping * sp.Matrix(s.dtheta)
     return Dynamics(sym=s, chain=chain, J=J, bias=bias, damping=motors.damping, G=G, B=motors.B,
-                    gravity=gravity)
+                    gravity=gravity, reflected=motors.reflected)
+
+
+def derive_dynamics(arm: Arm) -> Dynamics:
+    """Symbolic dynamics of ``arm`` (eq. 11-12), from its chain (:attr:`Arm.chain`)."""
+    return chain_dynamics(arm.chain)
+
+
+def lagrange_reference(dyn: Dynamics, numeric: bool = False) -> tuple[sp.Matrix, sp.Matrix]:
+    """(J, G) of the Euler-Lagrange equations of ``dyn``'s chain: the reference
+    form (eq. 11-12) the recursive form is proved equal to. In its parameter
+    symbols, expanded; ``numeric``: with the parameter values put in, unexpanded
+    (sampled states of longer chains)."""
+    values = dyn.subs if numeric else None
+    J, G_rigid = lagrange_equations(dyn.chain, dyn.sym.theta, dyn.sym.dtheta, dyn.reflected, values)
+    damping = dyn.damping.xreplace(values) if numeric else dyn.damping
+    return J, G_rigid + damping * sp.Matrix(dyn.sym.dtheta)
+
+
+def reference_mismatch(dyn: Dynamics, numeric: bool = False) -> str | None:
+    """None when J and the bias of ``dyn`` equal the Euler-Lagrange reference
+    identically in q, q' (and in the parameters unless ``numeric``): a proof,
+    by canonical forms modulo sin^2 + cos^2 = 1 (:mod:`derive.dynamics.trigpoly`);
+    else the first differing entry, named."""
+    s = dyn.sym
+    values = dyn.subs if numeric else None
+    F, J_ref, G_ref = reference_ring(dyn.chain, s.theta, s.dtheta, dyn.reflected, values)
+    n = dyn.n
+    mine = list(dyn.J) + list(dyn.bias)
+    if values:
+        mine = dag_xreplace(mine, values)
+    conv = F.convert(mine)
+    for k, (got, want) in enumerate(zip(conv, [x for row in J_ref for x in row] + G_ref)):
+        if got != want:
+            return f"J[{k // n + 1}][{k % n + 1}]" if k < n * n else f"bias[{k - n * n + 1}]"
+    return None

@@ -220,11 +220,11 @@ def test_reference_functions_refuse_what_they_cannot_evaluate():
 
 def test_ball_function_evaluates_each_shared_subexpression_once():
     """The 8-link chain's G: 1.6 million tree nodes, a few hundred distinct ones."""
-    from derive.dynamics.planar import derive_dynamics
+    from derive.dynamics.equations import derive_dynamics
     from derive.model.examples import planar_chain
 
     dyn = derive_dynamics(planar_chain(8, gravity=9.81))
-    G = list(Substitution(dict(dyn.params.values))(dyn.G))
+    G = list(Substitution(dict(dyn.values))(dyn.G))
     f = BallFunction(list(dyn.sym.theta + dyn.sym.dtheta), G)
     assert f.operations < 600
     q = [sp.Rational(k + 1, 7) for k in range(16)]

@@ -6,7 +6,7 @@ import sympy as sp
 
 import derive
 from derive.dynamics import dag
-from derive.dynamics.planar import derive_dynamics
+from derive.dynamics.equations import derive_dynamics
 from derive.model.examples import planar_chain
 
 
@@ -50,7 +50,7 @@ def test_walks_visit_each_distinct_subexpression_once_on_an_8_link_chain(monkeyp
     dag.free_symbols(G, memo)
     assert len(visits) == len(memo) < 1000  # once per object, and there are few
     visits.clear()
-    out = dag.Substitution(dict(dyn.params.values))(dyn.G)
+    out = dag.Substitution(dict(dyn.values))(dyn.G)
     assert len(visits) < 1000 and out.free_symbols <= set(dyn.sym.theta + dyn.sym.dtheta)
     visits.clear()
     J = dag.jacobian(dyn.G, dyn.sym.dtheta[:1])

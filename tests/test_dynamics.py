@@ -7,16 +7,19 @@ import pytest
 import sympy as sp
 
 import derive
-from derive.dynamics.planar import a6_form, derive_dynamics, lagrange_reference
+from derive.dynamics.equations import derive_dynamics, lagrange_reference
+from derive.dynamics.planar import a6_form, planar_reference
 from derive.dynamics.identities import first_nonzero, matrix_is_zero
+from derive.dynamics.program import matrix_xreplace
 
 from .arms import chain
 
 
 def _at(m, point: dict) -> np.ndarray:
-    """m evaluated at ``point`` in 30-digit floats (substituted, so no adaptive evalf)."""
+    """m evaluated at ``point`` in 30-digit floats (substituted, each shared
+    subexpression once, so no adaptive evalf)."""
     floats = {s: sp.Float(v, 30) for s, v in point.items()}
-    return np.array(m.xreplace(floats).tolist(), dtype=float)
+    return np.array(matrix_xreplace(m, floats).tolist(), dtype=float)
 
 
 def _numeric(m, values, rng, syms):
@@ -74,7 +77,7 @@ def test_eq12_recursive_form_equals_lagrangian_symbolically(n):
     """CRBA J and RNEA G equal the Euler-Lagrange J and G, in symbols (a proof)."""
     arm = chain(n, gravity=9.81)
     dyn = derive_dynamics(arm)
-    J_ref, G_ref = lagrange_reference(arm, dyn)
+    J_ref, G_ref = lagrange_reference(dyn)
     assert first_nonzero(dyn.J - J_ref, dyn.sym.theta) is None
     assert first_nonzero(dyn.G - G_ref, dyn.sym.theta) is None
 
@@ -83,11 +86,11 @@ def test_eq12_recursive_form_equals_lagrangian_symbolically(n):
 def test_eq12_recursive_form_equals_lagrangian_at_sampled_states(n):
     arm = chain(n, gravity=9.81)
     dyn = derive_dynamics(arm)
-    J_ref, G_ref = lagrange_reference(arm, dyn)
+    J_ref, G_ref = lagrange_reference(dyn, numeric=True)
     rng = np.random.default_rng(n)
     state = dyn.sym.theta + dyn.sym.dtheta
     for _ in range(5):
-        point = dict(dyn.params.values)
+        point = dict(dyn.values)
         point.update({s: rng.uniform(-3, 3) for s in state})
         for mine, ref in ((dyn.J, J_ref), (dyn.G, G_ref)):
             np.testing.assert_allclose(_at(mine, point), _at(ref, point), rtol=1e-13, atol=1e-13)
@@ -97,7 +100,7 @@ def test_recursive_form_differs_from_a_wrong_reference():
     """The identity check can fail: a perturbed J is told apart from the reference."""
     arm = chain(2)
     dyn = derive_dynamics(arm)
-    J_ref, _ = lagrange_reference(arm, dyn)
+    J_ref, _ = lagrange_reference(dyn)
     wrong = dyn.J.copy()
     wrong[0, 1] += sp.Rational(1, 10**6) * sp.cos(dyn.sym.theta[1])
     assert first_nonzero(wrong - J_ref, dyn.sym.theta) == (0, 1)

@@ -23,7 +23,7 @@ import sympy as sp
 
 pin = pytest.importorskip("pinocchio")
 
-from derive.dynamics.planar import Dynamics, derive_dynamics  # noqa: E402
+from derive.dynamics.equations import Dynamics, derive_dynamics  # noqa: E402
 from derive.model.spec import Arm, load_arm, packaged_arms  # noqa: E402
 
 from .arms import chain  # noqa: E402
@@ -82,7 +82,7 @@ def derived(n: int, gravity: float) -> tuple[Arm, Dynamics, Matrices]:
 def numeric(arm: Arm) -> tuple[Arm, Dynamics, Matrices]:
     """``arm``, its symbolic dynamics and J(q, v), G(q, v) lambdified with its values put in."""
     dyn = derive_dynamics(arm)
-    values = dyn.params.subs
+    values = dyn.subs
     args = [list(dyn.sym.theta), list(dyn.sym.dtheta)]
     J = sp.lambdify(args, dyn.J.xreplace(values), modules="numpy")
     G = sp.lambdify(args, dyn.G.xreplace(values), modules="numpy")

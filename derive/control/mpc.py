@@ -15,7 +15,7 @@ from fractions import Fraction
 
 import sympy as sp
 
-from derive.dynamics.planar import Dynamics
+from derive.dynamics.equations import Dynamics
 from derive.model.spec import T1_SYMBOL as T1
 from derive.model.spec import T2_SYMBOL as T2
 from derive.summary import compact_repr

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dynamics.dag import jacobian, matrix_xreplace
-from derive.dynamics.planar import Dynamics
+from derive.dynamics.equations import Dynamics
 from derive.errors import DerivationError
 from derive.control.mpc import Mpc
 from derive.control.observer import Observer

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dynamics.planar import Dynamics
+from derive.dynamics.equations import Dynamics
 from derive.model.spec import w_symbols as spec_w_symbols
 from derive.summary import compact_repr
 

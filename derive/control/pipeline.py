@@ -12,7 +12,8 @@ from functools import cached_property
 import sympy as sp
 
 from derive.dynamics.dag import Substitution
-from derive.dynamics.planar import Dynamics, derive_dynamics, lumped_2link
+from derive.dynamics.equations import Dynamics, derive_dynamics
+from derive.dynamics.planar import lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
@@ -116,19 +117,19 @@ def derive(arm: Arm) -> Derivation:
     mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
     synthesis = None
     if ctl.w_auto:
-        synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.params.values)), dyn.sym.theta)
+        synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
         obs = derive_observer(dyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
                               W_values=None if chen else synthesis.W)
     else:
         obs = derive_observer(dyn, w_values=ctl.w, W_values=ctl.W)
     npid = derive_npid(dyn, mpc, obs)
-    values = dyn.params.values + mpc.values + obs.values
+    values = dyn.values + mpc.values + obs.values
     rep = dict(values)
     num = Substitution(rep)  # one memo for every matrix: they share J's and G's subexpressions
 
     lumped = bound = None
-    if arm.n == 2:
+    if arm.n == 2 and dyn.chain.planar:   # the paper's lumped form (a6) is a planar 2-link one
         lumped = {k: v.xreplace(rep) for k, v in lumped_2link(dyn).items()}
         if not obs.full:
             bound = speed_bound(lumped["X"], rep[obs.w[0]]) if lumped["X"] != 0 else sp.oo

@@ -32,8 +32,10 @@ from derive.dynamics.spatial import ZERO, ZERO_VEC, JointFrame, vec
 from derive.model.chain import Chain
 from derive.model.spec import Arm
 from derive.model.symbols import JointSymbols
+from derive.summary import compact_repr
 
 
+@compact_repr
 @dataclass(frozen=True)
 class Dynamics:
     """Symbolic dynamics of an n-joint chain, in its parameter symbols.

@@ -50,26 +50,27 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
     A factor applies to a parameter the arm file gives (a symbol of ``d.values``);
     a value the file leaves to its default (a uniform rod's inertia m l^2/12) is
     an expression in those symbols and follows them."""
-    p = d.dynamics.params
+    by_field = {p.field: p.symbol for p in d.dynamics.chain.parameters}
     values = {sym: float(v) for sym, v in d.values}
     scale: dict[sp.Symbol, float] = {}
 
-    def put(entry, factor: float) -> None:
-        if isinstance(entry, sp.Symbol) and entry in values:
+    def put(field_name: str, factor: float) -> None:
+        entry = by_field.get(field_name)
+        if entry is not None and entry in values:
             scale[entry] = factor
 
     last = d.n - 1
-    for k, pm in enumerate(d.arm.point_masses):
+    for k, pm in enumerate(d.arm.point_masses, 1):
         if pm.link == last:
-            put(p.pm_mass[k], s.payload_scale)
-            put(p.pm_inertia[k], s.payload_scale)
-    for i, f in enumerate(s.link_mass_scale):
-        put(p.mass[i], f)
-        put(p.inertia[i], f)
-    for syms, factors in ((p.Kt, s.torque_constant_scale), (p.Kv, s.voltage_constant_scale),
-                          (p.R, s.resistance_scale)):
-        for sym, f in zip(syms, factors):
-            put(sym, f)
+            put(f"point_mass[{k}].mass", s.payload_scale)
+            put(f"point_mass[{k}].inertia", s.payload_scale)
+    for i, f in enumerate(s.link_mass_scale, 1):
+        put(f"link[{i}].mass", f)
+        put(f"link[{i}].inertia", f)
+    for key, factors in (("torque_constant", s.torque_constant_scale), ("voltage_constant", s.voltage_constant_scale),
+                         ("resistance", s.resistance_scale)):
+        for i, f in enumerate(factors, 1):
+            put(f"motor[{i}].{key}", f)
     changed = {}
     for sym, f in scale.items():
         if f != 1.0:

@@ -31,42 +31,30 @@ static void glasgow_2link_plant_kernel_mass_matrix(const glasgow_2link_real thet
     J[3] = a0;
 }
 
-/* G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 22 operations. */
+/* G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 13 operations. */
 static void glasgow_2link_plant_kernel_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real G[2])
 {
-    real a0, a1, a2, a3, a4, a5, a6, a7;
+    real a0, a1, a2, a3, a4;
     a0 = 0.019617647058823528;
     a1 = dtheta[0];
     a0 = a0 * a1;
-    a2 = 0.38;
-    a3 = -0.10659;
-    a4 = dtheta[1];
-    a5 = a1 + a4;
-    a5 = a5 * a5;
-    a3 = a3 * a5;
-    a5 = -0.17518;
-    a1 = a1 * a1;
-    a5 = a5 * a1;
-    a6 = theta[1];
-    a7 = cos(a6);
-    a5 = a5 * a7;
-    a3 = a3 + a5;
-    a2 = a2 * a3;
-    a6 = sin(a6);
-    a2 = a2 * a6;
+    a2 = -0.0405042;
+    a3 = dtheta[1];
+    a4 = a1 + a3;
+    a4 = a4 * a4;
+    a2 = a2 * a4;
+    a4 = theta[1];
+    a4 = sin(a4);
+    a2 = a2 * a4;
     a0 = a0 + a2;
     a2 = 0.0405042;
+    a1 = a1 * a1;
     a2 = a2 * a1;
-    a2 = a2 * a6;
+    a2 = a2 * a4;
     a0 = a0 + a2;
-    a3 = 0.0665684;
-    a3 = a3 * a1;
-    a3 = a3 * a7;
-    a3 = a3 * a6;
-    a0 = a0 + a3;
     G[0] = a0;
     a0 = 0.0004136;
-    a0 = a0 * a4;
+    a0 = a0 * a3;
     a0 = a0 + a2;
     G[1] = a0;
 }
@@ -94,10 +82,10 @@ static void glasgow_2link_plant_kernel_input_matrix(glasgow_2link_real B[4])
     B[3] = a0;
 }
 
-/* Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 46 operations. */
+/* Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 38 operations. */
 static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real u[2], const glasgow_2link_real d[2], glasgow_2link_real ddtheta[2])
 {
-    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12;
+    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
     a0 = 0.03181613333333334;
     a1 = 0.17929666666666666;
     a2 = 0.0810084;
@@ -107,9 +95,9 @@ static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real
     a1 = a1 + a2;
     a2 = a0 * a1;
     a5 = 0.0405042;
-    a5 = a5 * a4;
-    a5 = a0 + a5;
-    a6 = a5 * a5;
+    a4 = a5 * a4;
+    a4 = a0 + a4;
+    a6 = a4 * a4;
     a2 = a2 - a6;
     a0 = a0 / a2;
     a6 = -0.019617647058823528;
@@ -128,43 +116,31 @@ static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real
     a3 = sin(a3);
     a8 = a8 * a3;
     a6 = a6 + a8;
-    a10 = -0.38;
-    a11 = -0.10659;
-    a12 = dtheta[1];
-    a7 = a7 + a12;
+    a9 = dtheta[1];
+    a7 = a7 + a9;
     a7 = a7 * a7;
-    a11 = a11 * a7;
-    a7 = -0.17518;
-    a7 = a7 * a9;
-    a7 = a7 * a4;
-    a11 = a11 + a7;
-    a10 = a10 * a11;
-    a10 = a10 * a3;
-    a6 = a6 + a10;
-    a10 = -0.0665684;
-    a10 = a10 * a9;
-    a10 = a10 * a4;
-    a10 = a10 * a3;
-    a6 = a6 + a10;
+    a5 = a5 * a7;
+    a5 = a5 * a3;
+    a6 = a6 + a5;
     a0 = a0 * a6;
-    a5 = a5 / a2;
-    a10 = -0.0004136;
-    a10 = a10 * a12;
-    a12 = 0.0088;
+    a4 = a4 / a2;
+    a5 = -0.0004136;
+    a5 = a5 * a9;
+    a9 = 0.0088;
     a3 = d[1];
-    a3 = a12 * a3;
-    a10 = a10 + a3;
+    a3 = a9 * a3;
+    a5 = a5 + a3;
     a3 = u[1];
-    a12 = a12 * a3;
-    a10 = a10 + a12;
-    a10 = a10 + a8;
-    a8 = a5 * a10;
+    a9 = a9 * a3;
+    a5 = a5 + a9;
+    a5 = a5 + a8;
+    a8 = a4 * a5;
     a0 = a0 - a8;
     ddtheta[0] = a0;
     a1 = a1 / a2;
-    a1 = a1 * a10;
-    a5 = a5 * a6;
-    a1 = a1 - a5;
+    a1 = a1 * a5;
+    a4 = a4 * a6;
+    a1 = a1 - a4;
     ddtheta[1] = a1;
 }
 

@@ -16,41 +16,28 @@ from derive.dynamics.planar import lumped_bodies
 from derive.errors import SpecError
 from derive.model.spec import arm_from_dict, packaged_arms
 from derive.model.singular import joint_motion
-from derive.model.symbols import ParamSymbols
 
 from .arms import chain_dict
 
 DATA = Path(__file__).parent / "data" / "arms"
 
 
-def _by_name(expr, symbols):
-    """``expr`` with each symbol replaced by the one of the same name in ``symbols``."""
-    names = {s.name: s for s in symbols}
-    return sp.sympify(expr).xreplace({s: names[s.name] for s in expr.free_symbols if s.name in names})
-
-
 @pytest.mark.parametrize("name", packaged_arms())
 def test_packaged_arms_chain_bodies_equal_the_lumped_bodies(name: str):
-    """Body i of the chain has today's (M, hx, Io) of link i with its point masses
-    (derive.dynamics.planar.lumped_bodies), exactly, once the defaults the file
-    left out are written as the expressions they are (com = l/2, uniform rod Ic = m l^2/12)."""
+    """Body i of the chain has the planar (M, hx, Io) of link i with its point masses
+    (derive.dynamics.planar.lumped_bodies, read from the file's links in the plane),
+    exactly; the defaults the file left out are the expressions they are
+    (com = l/2, uniform rod Ic = m l^2/12)."""
     arm = derive.load_arm(name)
-    p = ParamSymbols.make(arm)
-    defaults = {}
-    for i, link in enumerate(arm.links):
-        if link.com_default:
-            defaults[p.com[i]] = p.length[i] / 2
-        if link.uniform_rod:
-            defaults[p.inertia[i]] = p.mass[i] * p.length[i] ** 2 / 12
-    own = [s for s, _ in p.values]
-    for i, (old, body) in enumerate(zip(lumped_bodies(arm, p), arm.chain.bodies)):
+    for i, (old, body) in enumerate(zip(lumped_bodies(arm), arm.chain.bodies)):
         expect = [old.M, old.hx, 0, 0, old.Io]
         got = [body.mass, body.first_moment[0], body.first_moment[1], body.first_moment[2], body.inertia[2, 2]]
         for e, g in zip(expect, got):
-            assert sp.expand(sp.sympify(e).xreplace(defaults) - _by_name(g, own)) == 0, (name, i, e, g)
+            assert sp.expand(sp.sympify(e) - g) == 0, (name, i, e, g)
+    by = {p.field: p.symbol for p in arm.chain.parameters}
     for i, joint in enumerate(arm.chain.joints):
         assert joint.axis == sp.ImmutableMatrix([0, 0, 1]) and joint.origin.R == sp.eye(3)
-        assert _by_name(joint.origin.p[0], own) == (0 if i == 0 else p.length[i - 1])
+        assert joint.origin.p[0] == (0 if i == 0 else by[f"link[{i}].length"])
     assert arm.chain.planar
 
 

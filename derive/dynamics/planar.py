@@ -19,7 +19,7 @@ import sympy as sp
 from derive.dynamics.identities import matrix_is_zero
 from derive.model.actuators import terms
 from derive.model.spec import Arm
-from derive.model.symbols import JointSymbols, ParamSymbols
+from derive.model.symbols import JointSymbols
 
 if TYPE_CHECKING:
     from derive.dynamics.equations import Dynamics
@@ -34,18 +34,42 @@ class Body:
     Io: sp.Expr  # moment of inertia about the joint
 
 
-def lumped_bodies(arm: Arm, p: ParamSymbols) -> tuple[Body, ...]:
+@dataclass(frozen=True)
+class PlanarSymbols:
+    """The planar arm file's quantities in the arm's parameter symbols, read by
+    field (``link[i].length``, ``point_mass[k].mass``, ...); a default the file
+    left out is the expression it stands for (com = l/2, a uniform rod's
+    I_c = m l^2/12, a point mass without inertia 0). Per link: length, mass,
+    com, inertia; per point mass: its link (0-based), mass, distance, inertia."""
+
+    links: tuple[tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr], ...]
+    point_masses: tuple[tuple[int, sp.Expr, sp.Expr, sp.Expr], ...]
+    g: sp.Symbol
+
+    @staticmethod
+    def of(arm: Arm) -> "PlanarSymbols":
+        by = {p.field: p.symbol for p in arm.chain.parameters}
+        links = []
+        for i in range(1, arm.n + 1):
+            l, m = by[f"link[{i}].length"], by[f"link[{i}].mass"]
+            links.append((l, m, by.get(f"link[{i}].com", l / 2), by.get(f"link[{i}].inertia", m * l ** 2 / 12)))
+        pms = tuple((pm.link, by[f"point_mass[{k}].mass"], by[f"point_mass[{k}].distance"],
+                     by.get(f"point_mass[{k}].inertia", sp.Integer(0)))
+                    for k, pm in enumerate(arm.point_masses, 1))
+        return PlanarSymbols(tuple(links), pms, by["arm.gravity"])
+
+
+def lumped_bodies(arm: Arm) -> tuple[Body, ...]:
     """(M, hx, Io) of each link with the point masses it carries."""
+    p = PlanarSymbols.of(arm)
     bodies = []
-    for i in range(arm.n):
-        M = p.mass[i]
-        hx = p.mass[i] * p.com[i]
-        Io = p.inertia[i] + p.mass[i] * p.com[i] ** 2
-        for k, pm in enumerate(arm.point_masses):
-            if pm.link == i:
-                M += p.pm_mass[k]
-                hx += p.pm_mass[k] * p.pm_distance[k]
-                Io += p.pm_inertia[k] + p.pm_mass[k] * p.pm_distance[k] ** 2
+    for i, (l, m, c, Ic) in enumerate(p.links):
+        M, hx, Io = m, m * c, Ic + m * c ** 2
+        for link, mp, rp, Ip in p.point_masses:
+            if link == i:
+                M += mp
+                hx += mp * rp
+                Io += Ip + mp * rp ** 2
         bodies.append(Body(M, hx, Io))
     return tuple(bodies)
 
@@ -57,23 +81,23 @@ def _down(arm: Arm) -> tuple[sp.Expr, sp.Expr]:
     return sp.expand(g[0] / symbol), sp.expand(g[1] / symbol)
 
 
-def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.Matrix]:
+def lagrange(arm: Arm, s: JointSymbols) -> tuple[sp.Matrix, sp.Matrix]:
     """Reference J and rigid G (Coriolis, centrifugal, gravity) from the Lagrangian.
 
     Kinetic energy of every link and point mass (translation of the centre of
     mass, rotation at the absolute angle rate) and potential energy g y.
     """
     n = arm.n
+    p = PlanarSymbols.of(arm)
     q, dq = s.theta, s.dtheta
     phi = [sum(q[: i + 1]) for i in range(n)]
     joint = [(sp.Integer(0), sp.Integer(0))]
-    for i in range(n):
+    for i, (l, _, _, _) in enumerate(p.links):
         x, y = joint[-1]
-        joint.append((x + p.length[i] * sp.cos(phi[i]), y + p.length[i] * sp.sin(phi[i])))
+        joint.append((x + l * sp.cos(phi[i]), y + l * sp.sin(phi[i])))
     down = _down(arm)
-    masses = [(p.mass[i], i, p.com[i], p.inertia[i]) for i in range(n)]
-    masses += [(p.pm_mass[k], pm.link, p.pm_distance[k], p.pm_inertia[k])
-               for k, pm in enumerate(arm.point_masses)]
+    masses = [(m, i, c, Ic) for i, (_, m, c, Ic) in enumerate(p.links)]
+    masses += [(mp, link, rp, Ip) for link, mp, rp, Ip in p.point_masses]
     T = V = sp.Integer(0)
     for m, i, r, inertia in masses:
         x = joint[i][0] + r * sp.cos(phi[i])
@@ -93,7 +117,7 @@ def lagrange(arm: Arm, s: JointSymbols, p: ParamSymbols) -> tuple[sp.Matrix, sp.
 def planar_reference(arm: Arm, dyn: Dynamics) -> tuple[sp.Matrix, sp.Matrix]:
     """(J, G) of the planar Euler-Lagrange equations of ``arm`` (a [[link]] arm
     file), in the symbols of ``dyn`` (its dynamics): expanded, n x n and n x 1."""
-    J, G_rigid = lagrange(arm, dyn.sym, ParamSymbols.make(arm))
+    J, G_rigid = lagrange(arm, dyn.sym)
     return J, G_rigid + dyn.damping * sp.Matrix(dyn.sym.dtheta)
 
 

@@ -21,6 +21,7 @@ import sympy as sp
 from flint import arb, arb_mat
 
 from derive.codegen.balls import BallFunction, ball, working_precision
+from derive.dynamics.program import lambdify
 from derive.control.pipeline import Derivation
 
 DIGITS = 40               # proved correct digits of every reference vector (norm-wise)
@@ -152,9 +153,13 @@ class Reference:
             d = self._d
             s = d.dynamics.sym
             th, dth = list(s.theta), list(s.dtheta)
+            n = self.n
+            J = lambdify(th, list(d.J), modules="mpmath")       # each shared subexpression once
+            G = lambdify(th + dth, list(d.G), modules="mpmath")
+            g = lambdify(th, list(d.numeric(d.dynamics.gravity)), modules="mpmath")
             self._plant_fns = {
-                "J": sp.lambdify(th, d.J, modules="mpmath"), "G": sp.lambdify(th + dth, d.G, modules="mpmath"),
-                "g": sp.lambdify(th, d.numeric(d.dynamics.gravity), modules="mpmath"), "B": d.B}
+                "J": lambda *a: (lambda v: mpmath.matrix([v[i * n:(i + 1) * n] for i in range(n)]))(J(*a)),
+                "G": lambda *a: mpmath.matrix(G(*a)), "g": lambda *a: mpmath.matrix(g(*a)), "B": d.B}
         return self._plant_fns
 
     def mass_matrix(self, theta):

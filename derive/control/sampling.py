@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from derive.dynamics.program import lambdify
+
 FORMS = ("mpc", "dobc", "npid")
 OBSERVERS = ("explicit", "implicit")
 MARGIN = 0.9
@@ -73,10 +75,10 @@ class SampledLoop:
         th, dth = list(s.theta), list(s.dtheta)
 
         def vec(args, m):
-            f = sp.lambdify(args, list(d.measured(m)), modules="numpy")
+            f = lambdify(args, list(d.measured(m)))
             return lambda *a: np.array(f(*a), dtype=float).ravel()
 
-        self.J = sp.lambdify(th, d.J, modules="numpy")
+        self.J = lambdify(th, d.J)
         self.G = vec(th + dth, d.G)
         self.B = np.array(d.B.tolist(), dtype=float)
         self.W = np.array(d.W.tolist(), dtype=float)

@@ -134,3 +134,19 @@ def inline(definitions: Definitions, exprs: Sequence[sp.Basic]) -> list[sp.Basic
     for x, e in definitions:
         full[x] = dag_xreplace([e], full, keep_sums=False)[0]
     return dag_xreplace(list(exprs), full, keep_sums=False)
+
+
+def lambdify(args: Sequence[sp.Symbol], exprs, modules: str = "numpy"):
+    """``sympy.lambdify(args, exprs, modules)`` for shared-subexpression entries:
+    the function computes the :func:`straight_line` program (each shared
+    subexpression once), so building and calling it take time proportional to
+    the DAG, not the tree (SymPy's own printer spells every path out: minutes
+    for a 6-joint arm's bias). ``exprs``: a matrix (the function returns its
+    nested list) or a sequence of expressions (a list)."""
+    shape = (exprs.rows, exprs.cols) if isinstance(exprs, sp.MatrixBase) else None
+    flat = list(exprs)
+    definitions, outputs = straight_line(flat)
+    if shape is not None:
+        outputs = [outputs[i * shape[1]:(i + 1) * shape[1]] for i in range(shape[0])]
+    return sp.lambdify(list(args), outputs, modules=modules, use_imps=False,
+                       cse=lambda e: (list(definitions), e))

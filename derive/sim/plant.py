@@ -25,6 +25,7 @@ import numpy as np
 import sympy as sp
 
 from derive.control.pipeline import Derivation
+from derive.dynamics.program import dag_xreplace, lambdify
 from derive.model.simspec import SimSettings
 
 SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
@@ -93,8 +94,8 @@ class Plant:
         self.n = n = d.n
         # the true plant's values put in (as 17-digit floats): the constants fold once, here
         rep = {sym: sp.Float(v, 17) for sym, v in zip(syms, plant.values)}
-        exprs = [e.xreplace(rep) for e in list(dyn.J) + list(dyn.G)]
-        self._jg = sp.lambdify(list(dyn.sym.theta + dyn.sym.dtheta), exprs, modules="numpy", cse=True)
+        exprs = dag_xreplace(list(dyn.J) + list(dyn.G), rep, keep_sums=False)  # as xreplace builds them
+        self._jg = lambdify(list(dyn.sym.theta + dyn.sym.dtheta), exprs)  # each shared subexpression once
         self._p: list[float] = []
         self.B = np.array([float(b.xreplace(rep)) for b in dyn.B.diagonal()], dtype=float)
         self.coulomb = np.array(plant.coulomb)

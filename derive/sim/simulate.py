@@ -27,6 +27,7 @@ import numpy as np
 
 from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
+from derive.dynamics.program import lambdify
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
 from derive.progress import progress
@@ -118,9 +119,7 @@ def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inp
     causes = []
     form = VARIANTS.get(name, (name, True))[0]
     if not bad:
-        import sympy as sp
-
-        J = np.array(sp.lambdify(d.theta, d.J, "numpy")(*x[:n]), dtype=float)
+        J = np.array(lambdify(d.theta, d.J)(*x[:n]), dtype=float)
         W = np.array(d.W.tolist(), dtype=float)
         rho = float(max(abs(np.linalg.eigvals(W @ np.linalg.inv(J)))))
         if form == "dobc" and rho * s.sample_time >= 2:

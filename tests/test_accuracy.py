@@ -219,7 +219,7 @@ def test_reference_functions_refuse_what_they_cannot_evaluate():
 
 
 def test_ball_function_evaluates_each_shared_subexpression_once():
-    """The 8-link chain's G: 1.6 million tree nodes, a few hundred distinct ones."""
+    """The 8-link chain's G: tens of thousands of tree nodes, a few hundred distinct ones."""
     from derive.dynamics.equations import derive_dynamics
     from derive.model.examples import planar_chain
 

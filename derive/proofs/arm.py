@@ -70,6 +70,8 @@ def check_theorem2_arm(d: Derivation) -> Outcome:
     """Theorem 2 for this arm: (a6), J > 0, dV/dt of the derived observer, bound of (26)."""
     if d.n != 2:
         return not_applicable(f"theorem 2 is stated for two links; this arm has {d.n}")
+    if d.lumped is None:
+        return not_applicable("theorem 2's proof rests on the planar 2-link form (a6); this arm is not a planar chain")
     if d.observer.full:
         return not_applicable("theorem 2 is stated for W of eq. (25); this arm has a full W (see observer-certificate)")
     if not d.W[1, 1] >= d.W[0, 0] > 0:

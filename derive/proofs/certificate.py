@@ -163,6 +163,8 @@ def check_exact_region(d: Derivation) -> Outcome:
     if d.n != 2 or d.observer.full:
         return not_applicable("the exact region is for two links with W of eq. (25)"
                               + (f"; this arm has {d.n} joints" if d.n != 2 else "; this arm has a full W"))
+    if d.lumped is None:
+        return not_applicable("the exact region rests on the planar 2-link form (a6); this arm is not a planar chain")
     Xa = d.lumped["X"]
     parts = [_form(d), _sylvester(), _sufficient(), _necessary(), _paper_implies()]
     if Xa > 0:

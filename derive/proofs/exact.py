@@ -26,6 +26,9 @@ from sympy.polys.fields import FracElement
 from sympy.polys.matrices import DomainMatrix
 from sympy.polys.polyerrors import CoercionFailed
 
+from derive.dynamics.program import free_symbols
+from derive.dynamics.trigpoly import constant_angles
+
 
 class Undecidable(ValueError):
     """The expression is not rational in the symbols and sin/cos of the angles."""
@@ -42,28 +45,32 @@ class Field:
     matrices are ``DomainMatrix`` over the field.
     """
 
-    def __init__(self, symbols: Iterable[sp.Symbol], angles: Sequence[sp.Symbol] = ()) -> None:
+    def __init__(self, symbols: Iterable[sp.Symbol], angles: Sequence[sp.Symbol] = (),
+                 constants: Sequence[sp.Expr] = ()) -> None:
         self.angles = tuple(angles)
-        self._sin = {a: sp.Dummy(f"s_{a}") for a in self.angles}
-        self._cos = {a: sp.Dummy(f"c_{a}") for a in self.angles}
+        # constants: numbers a whose sin(a), cos(a) occur (a URDF angle that is not a multiple of
+        # pi/2 stays exact as sin/cos of its Rational); their own s, c with s^2 + c^2 = 1
+        turned = self.angles + tuple(constants)
+        self._sin = {a: sp.Dummy(f"s_{a}") for a in turned}
+        self._cos = {a: sp.Dummy(f"c_{a}") for a in turned}
         plain = sorted(set(symbols) - set(self.angles), key=sp.default_sort_key)
         self.symbols = tuple(plain) + self.angles
         # s_i first: lex order then makes s_i^2 the leading monomial of s_i^2 + c_i^2 - 1
-        gens = [self._sin[a] for a in self.angles] + [self._cos[a] for a in self.angles] + plain
+        gens = [self._sin[a] for a in turned] + [self._cos[a] for a in turned] + plain
         self.K = sp.QQ.frac_field(*gens)
         self._ring = self.K.field.ring
         self._forward = {**{sp.sin(a): s for a, s in self._sin.items()},
                          **{sp.cos(a): c for a, c in self._cos.items()}}
         self._back = {v: k for k, v in self._forward.items()}
-        self._ideal = [self._ring.from_expr(self._sin[a] ** 2 + self._cos[a] ** 2 - 1) for a in self.angles]
+        self._ideal = [self._ring.from_expr(self._sin[a] ** 2 + self._cos[a] ** 2 - 1) for a in turned]
 
     @staticmethod
     def for_exprs(exprs: Iterable[sp.Basic], angles: Sequence[sp.Symbol], extra: Iterable[sp.Symbol] = ()) -> "Field":
-        """The field of every free symbol of ``exprs`` (and ``extra``)."""
-        syms: set[sp.Symbol] = set(extra)
-        for e in exprs:
-            syms |= sp.sympify(e).free_symbols
-        return Field(syms, angles)
+        """The field of every free symbol of ``exprs`` (and ``extra``), with the constant
+        angles they take sin/cos of."""
+        exprs = [x for e in exprs for x in (e if isinstance(e, sp.MatrixBase) else [e])]
+        syms: set[sp.Symbol] = set(extra) | free_symbols(exprs)
+        return Field(syms, angles, constant_angles(exprs))
 
     # -- conversion -----------------------------------------------------------------------
     def __call__(self, expr: sp.Expr) -> FracElement:

@@ -4,7 +4,7 @@ For the default arm and planar chains of n = 2, 3, 4, 6 links: the time to
 derive J and G (eq. 12) and their operation count after CSE with the arm's
 values put in, for
 
-* ours: :func:`derive.dynamics.planar.derive_dynamics` (CRBA for J, RNEA for G);
+* ours: :func:`derive.dynamics.equations.derive_dynamics` (CRBA for J, RNEA for G, over the arm's chain);
 * Kane: :class:`sympy.physics.mechanics.KanesMethod`, generalized speeds
   u_i = theta_i';
 * Lagrange: :class:`sympy.physics.mechanics.LagrangesMethod`.
@@ -33,11 +33,17 @@ from sympy.core.function import AppliedUndef
 from sympy.physics import mechanics as me
 
 import derive
-from derive.dynamics.planar import Dynamics, crba, derive_dynamics, lumped_bodies, rnea
+from derive.dynamics.crba import composites, crba
+from derive.dynamics.equations import Dynamics, derive_dynamics, frames
+from derive.dynamics.motors import motor_terms as chain_motor_terms
+from derive.dynamics.program import matrix_xreplace
+from derive.dynamics.regroup import base_parameters
+from derive.dynamics.rnea import rnea
+from derive.dynamics.spatial import ZERO, vec
 from derive.dynamics.identities import count_ops_cse
 from derive.model.examples import planar_chain_dict
 from derive.model.spec import Arm, arm_from_dict
-from derive.model.symbols import JointSymbols, ParamSymbols
+from derive.model.symbols import JointSymbols
 
 from . import Goal, Section, best_of, seconds, table
 
@@ -146,12 +152,14 @@ def timed(fn: Callable[[], T]) -> tuple[float, int, T]:
 def recursive_J_G(arm: Arm) -> tuple[sp.Matrix, sp.Matrix]:
     """J and G alone by the recursive form (CRBA, RNEA at theta'' = 0, damping), without
     the rest of derive_dynamics (Coriolis matrix, gravity vector): the work Kane does."""
-    n, s, p = arm.n, JointSymbols.make(arm.n), ParamSymbols.make(arm)
-    bodies = lumped_bodies(arm, p)
-    J = crba(bodies, s.theta, p.length, [p.gear[i] ** 2 * p.Jm[i] for i in range(n)])
-    bias = rnea(bodies, s.theta, s.dtheta, [sp.Integer(0)] * n, p.length, p.g)
-    damping = [p.gear[i] ** 2 * p.Kt[i] * p.Kv[i] / p.R[i] + p.friction[i] for i in range(n)]
-    return J, bias + sp.Matrix([d * w for d, w in zip(damping, s.dtheta)])
+    chain = arm.chain
+    n, s = chain.n, JointSymbols.make(chain.n)
+    motors = chain_motor_terms(chain.actuators, n)
+    fr = frames(chain, s.theta)
+    bodies = base_parameters(chain.bodies, chain.joints)
+    J = crba(composites(bodies, fr), fr, motors.reflected)
+    bias = rnea(bodies, fr, s.dtheta, [ZERO] * n, vec(chain.gravity))
+    return J, bias + motors.damping * sp.Matrix(s.dtheta)
 
 
 def ours(arm: Arm) -> tuple[Form, Dynamics, float]:
@@ -160,8 +168,8 @@ def ours(arm: Arm) -> tuple[Form, Dynamics, float]:
     t, runs, dyn = timed(lambda: derive_dynamics(arm))
     t_core, _, (J, G) = timed(lambda: recursive_J_G(arm))
     assert J == dyn.J and G == dyn.G, f"{arm.name}: recursive_J_G differs from derive_dynamics"
-    values = dyn.params.subs
-    return Form(t, runs, dyn.J.xreplace(values), dyn.G.xreplace(values)), dyn, t_core
+    values = dyn.subs
+    return Form(t, runs, matrix_xreplace(dyn.J, values), matrix_xreplace(dyn.G, values)), dyn, t_core
 
 
 def mechanics(arm: Arm, dyn: Dynamics, kane: bool) -> Form:

@@ -10,6 +10,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import sympy as sp
 
 from derive.cli import main
 
@@ -67,3 +68,42 @@ def test_show_and_simulate_a_urdf_arm(two_commands, capsys, tmp_path) -> None:
     metrics = json.loads((tmp_path / "m.json").read_text())
     links = metrics["controllers"]["mpc"]["links"]
     assert len(links) == 2 and all(0 < x["max_error"] < 1 for x in links)
+
+
+def test_show_prints_an_arm_whose_urdf_turns_by_an_inexact_angle(tmp_path, capsys) -> None:
+    """A joint origin turned by rpy 0.3 (not a multiple of pi/2: the chain keeps sin(3/10),
+    cos(3/10) exact) is shown with those constants as numbers, not refused."""
+    from .test_model_urdf import joint, link, robot, write
+    from .test_spatial_dynamics import urdf_arm
+
+    text = robot(link("a") + link("b", 1.0, "0.1 0 0", inertia=(1e-3, 0, 0, 2e-3, 0, 2e-3))
+                 + link("c", 0.5, "0.1 0.02 0", inertia=(1e-3, 0, 0, 1e-3, 0, 1e-3))
+                 + joint("j1", "a", "b", axis="0 1 0") + joint("j2", "b", "c", xyz="0.3 0 0", rpy_="0.3 0 0"))
+    arm = urdf_arm(write(tmp_path, text), "a", "c", 2, "tilted")
+    assert any(sp.sin(sp.Rational(3, 10)) in x.atoms(sp.sin) for x in arm.chain.joints[1].origin.R)
+    path = tmp_path / "tilted.toml"
+    path.write_text(f'''[arm]
+name = "tilted"
+urdf = "t.urdf"
+base_link = "a"
+tip_link = "c"
+gravity = 9.81
+gravity_direction = [0, 0, -1]
+actuation = "torque"
+
+[[motor]]
+gear_ratio = 1.0
+rotor_inertia = 0.0
+
+[[motor]]
+gear_ratio = 1.0
+rotor_inertia = 0.0
+
+[controller]
+T1 = 0.0
+T2 = 0.2
+w = [5.0, 5.0]
+''', encoding="utf-8")
+    assert main(["show", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "J(θ)" in out and "sin(0.3)" not in out

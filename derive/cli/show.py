@@ -17,6 +17,7 @@ import sympy as sp
 from derive.cli.notation import Names, TexPrinter, TextPrinter, subscript, width, wrap
 from derive.control.pipeline import Derivation
 from derive.dynamics.identities import fourier_form
+from derive.dynamics.trigpoly import constant_angles
 
 WIDTH = 100
 DIGITS = 6
@@ -79,7 +80,11 @@ def entries(d: Derivation) -> list[Entry]:
 
 
 def _canonical(x: sp.Expr, angles: tuple[sp.Symbol, ...]) -> sp.Expr:
-    """The display normal form of one entry (a quotient for L(θ))."""
+    """The display normal form of one entry (a quotient for L(θ)). sin/cos of a constant
+    angle (a URDF rpy that is not a multiple of pi/2) is shown by its 30-digit value."""
+    constants = constant_angles([x])
+    if constants:
+        x = x.xreplace({f(c): sp.Rational(str(sp.N(f(c), 30))) for c in constants for f in (sp.sin, sp.cos)})
     try:
         return fourier_form(x, angles)
     except ValueError:

@@ -70,9 +70,10 @@ def test_show_and_simulate_a_urdf_arm(two_commands, capsys, tmp_path) -> None:
     assert len(links) == 2 and all(0 < x["max_error"] < 1 for x in links)
 
 
-def test_show_prints_an_arm_whose_urdf_turns_by_an_inexact_angle(tmp_path, capsys) -> None:
+def test_show_and_check_an_arm_whose_urdf_turns_by_an_inexact_angle(tmp_path, capsys) -> None:
     """A joint origin turned by rpy 0.3 (not a multiple of pi/2: the chain keeps sin(3/10),
-    cos(3/10) exact) is shown with those constants as numbers, not refused."""
+    cos(3/10) exact) is shown with those constants as numbers, and checked: the exact proofs
+    and the observer certificate take them as generators with s^2 + c^2 = 1, |s|, |c| <= 1."""
     from .test_model_urdf import joint, link, robot, write
     from .test_spatial_dynamics import urdf_arm
 
@@ -107,3 +108,6 @@ w = [5.0, 5.0]
     assert main(["show", str(path)]) == 0
     out = capsys.readouterr().out
     assert "J(θ)" in out and "sin(0.3)" not in out
+    assert main(["check", str(path)]) == 0   # the exact proofs and the observer certificate take sin(3/10) too
+    out = capsys.readouterr().out
+    assert re.search(r"observer-certificate .* proved", out) and re.search(r"skew-symmetry .* proved", out)

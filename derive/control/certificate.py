@@ -38,6 +38,8 @@ import numpy as np
 import sympy as sp
 from sympy.polys.rings import ring
 
+from derive.dynamics.trigpoly import constant_angles
+
 FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding (~ n eps ||N||)
 DEFAULT_BUDGET = 20_000   # cells per decision
 MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
@@ -141,6 +143,10 @@ class InertiaModel:
         names = []
         for c in self.deps:
             names += [f"c{c.index}", f"s{c.index}"] if c.angle else [f"q{c.index}"]
+        # sin/cos of a constant angle (a URDF rpy that is not a multiple of pi/2): generators
+        # after the deps', bounded by 1 like any cos, sin; the derivatives do not act on them
+        constants = constant_angles(list(Jt))
+        names += [f"{t}{k}_const" for k in range(len(constants)) for t in ("kc", "ks")]
         R, *gens = ring(",".join(names), sp.QQ)
         g = iter(gens)
         ops, radius, repl = [], {}, {}
@@ -155,6 +161,9 @@ class InertiaModel:
                 lo, hi = c.span
                 radius[R.gens.index(qg)] = Fraction(max(abs(lo), abs(hi)))
                 ops.append(lambda p, qg=qg: p.diff(qg))
+        for a in constants:
+            kc, ks = next(g), next(g)
+            repl[sp.cos(a)], repl[sp.sin(a)] = kc.as_expr(), ks.as_expr()
 
         def bound(p) -> float:
             """sup |p| <= sum |coefficient| prod radius^e (|cos|, |sin| <= 1), rounded up."""

@@ -52,72 +52,79 @@ class SampleLimit:
     worst: tuple[tuple[float, ...], tuple[float, ...]] | None
 
 
-def _jac(f, x0: np.ndarray, h: float = 1e-6) -> np.ndarray:
-    """Central-difference Jacobian of a vector function at x0."""
-    y0 = np.asarray(f(x0), dtype=float)
-    out = np.zeros((y0.size, x0.size))
-    for i in range(x0.size):
-        e = np.zeros_like(x0)
-        step = h * (1.0 + abs(x0[i]))
-        e[i] = step
-        out[:, i] = (np.asarray(f(x0 + e), dtype=float) - np.asarray(f(x0 - e), dtype=float)) / (2 * step)
-    return out
+def _jac(f, X: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central-difference Jacobians of a batched vector function f: (P, k) -> (P, m) at the P rows
+    of X (P x k): P x m x k, the step h (1 + |x_i|) per row and coordinate."""
+    cols = []
+    for i in range(X.shape[1]):
+        step = h * (1.0 + np.abs(X[:, i]))
+        E = np.zeros_like(X)
+        E[:, i] = step
+        cols.append((f(X + E) - f(X - E)) / (2 * step)[:, None])
+    return np.stack(cols, axis=-1)
+
+
+def _batched(args, exprs):
+    """A numpy function of the P x len(args) array of arguments, one row per point: P x len(exprs)
+    (constant entries broadcast; each shared subexpression computed once, derive.dynamics.program)."""
+    f = lambdify(args, list(exprs))
+
+    def call(X: np.ndarray) -> np.ndarray:
+        P = X.shape[0]
+        return np.stack([np.broadcast_to(np.asarray(v, dtype=float), (P,)) for v in f(*X.T)], axis=-1)
+
+    return call
 
 
 class SampledLoop:
-    """Numeric laws of a derivation for the linearisation (all in double precision)."""
+    """Numeric laws of a derivation for the linearisation (double precision, evaluated at all
+    operating points at once: every function takes and returns one row per point)."""
 
     def __init__(self, d) -> None:
         s = d.dynamics.sym
-        self.n = n = d.n
-        self.d = d
+        self.n = d.n
         x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
         th, dth = list(s.theta), list(s.dtheta)
-
-        def vec(args, m):
-            f = lambdify(args, list(d.measured(m)))
-            return lambda *a: np.array(f(*a), dtype=float).ravel()
-
-        self.J = lambdify(th, d.J)
-        self.G = vec(th + dth, d.G)
+        self.J = _batched(th, d.J)            # P x n*n, row-major
+        self.G = _batched(th + dth, d.measured(d.G))
         self.B = np.array(d.B.tolist(), dtype=float)
         self.W = np.array(d.W.tolist(), dtype=float)
         self.C = np.array(d.C.tolist(), dtype=float)
-        self.laws = {"mpc": vec(x, d.u_star), "dobc": vec(x + list(s.z), d.u_dobc),
-                     "npid": vec(x + list(s.int_e), d.u_npid)}
+        self.laws = {"mpc": _batched(x, d.measured(d.u_star)), "dobc": _batched(x + list(s.z), d.measured(d.u_dobc)),
+                     "npid": _batched(x + list(s.int_e), d.measured(d.u_npid))}
 
-    def accel(self, q, dq, u) -> np.ndarray:
-        return np.linalg.solve(np.array(self.J(*q), dtype=float), self.B @ u - self.G(*q, *dq))
+    def mass(self, Q: np.ndarray) -> np.ndarray:
+        """J at the rows of Q: P x n x n."""
+        return self.J(Q).reshape(-1, self.n, self.n)
 
-    def dG(self, q0: np.ndarray, dq0: np.ndarray) -> np.ndarray:
-        """dG/d(theta, theta') at a point: n x 2n."""
-        n = self.n
-        return _jac(lambda x: self.G(*x[:n], *x[n:]), np.concatenate([q0, dq0]))
+    def accel(self, Q, DQ, U) -> np.ndarray:
+        """theta'' at each row: J theta'' = B u - G, solved (P x n)."""
+        rhs = U @ self.B.T - self.G(np.hstack([Q, DQ]))
+        return np.linalg.solve(self.mass(Q), rhs[..., None])[..., 0]
 
-    def point(self, form: str, q0: np.ndarray, dq0: np.ndarray):
-        """Jacobians at an operating point: (df/dx, df/du, du/dx, du/dc, J, dr/dx)."""
-        n = self.n
-        yd, dyd = self.C @ q0, self.C @ dq0
-        ref = np.concatenate([yd, dyd, np.zeros(n)])
-        c0 = -self.W @ dq0 if form == "dobc" else np.zeros(n)
+    def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
+        """Jacobians at the operating points (rows of Q, DQ), stacked over the points: A = df/dx,
+        Bu = df/du, Ux = du/dx, Uc = du/dc (the form's state c), J, dr = d(G - W theta')/dx."""
+        n, P = self.n, Q.shape[0]
+        ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
         law = self.laws[form]
 
-        def u_of(xc):
-            args = np.concatenate([xc[:2 * n], ref, xc[2 * n:]]) if form != "mpc" else np.concatenate([xc[:2 * n], ref])
-            return law(*args)
+        def u_of(XC):
+            return law(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
 
-        xc0 = np.concatenate([q0, dq0] + ([c0] if form != "mpc" else []))
-        u0 = u_of(xc0)
-        Uxc = _jac(u_of, xc0)
+        XC0 = np.hstack([Q, DQ] + ([-DQ @ self.W.T] if form == "dobc" else [np.zeros((P, n))] if form == "npid"
+                                   else []))
+        Uxc = _jac(u_of, XC0)
 
-        def f(xu):
-            return np.concatenate([xu[n:2 * n], self.accel(xu[:n], xu[n:2 * n], xu[2 * n:])])
+        def f(XU):
+            return np.hstack([XU[:, n:2 * n], self.accel(XU[:, :n], XU[:, n:2 * n], XU[:, 2 * n:])])
 
-        F = _jac(f, np.concatenate([q0, dq0, u0]))
+        F = _jac(f, np.hstack([Q, DQ, u_of(XC0)]))
         # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
         # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
-        dr = self.dG(q0, dq0) - np.hstack([np.zeros((n, n)), self.W])
-        return (F[:, :2 * n], F[:, 2 * n:], Uxc[:, :2 * n], Uxc[:, 2 * n:], np.array(self.J(*q0), dtype=float), dr)
+        dr = _jac(self.G, np.hstack([Q, DQ])) - np.hstack([np.zeros((n, n)), self.W])
+        return {"A": F[:, :, :2 * n], "Bu": F[:, :, 2 * n:], "Ux": Uxc[:, :, :2 * n], "Uc": Uxc[:, :, 2 * n:],
+                "J": self.mass(Q), "dr": dr}
 
 
 def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -141,12 +148,12 @@ def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray
     return [(q, dq) for q in configs for dq in speeds]
 
 
-def sample_limit(d, form: str, observer: str = "explicit", points=None) -> SampleLimit:
-    """The largest stable sample time of ``form`` (module docstring), with the stated margin."""
-    loop = SampledLoop(d)
+def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None) -> SampleLimit:
+    """The largest stable sample time of ``form`` (module docstring), with the stated margin
+    (``loop``: the derivation's SampledLoop when the caller has it)."""
+    loop = SampledLoop(d) if loop is None else loop
     pts = operating_points(d) if points is None else points
-    lins = [loop.point(form, q0, dq0) for q0, dq0 in pts]
-    L = {key: np.stack([lin[i] for lin in lins]) for i, key in enumerate(("A", "Bu", "Ux", "Uc", "J", "dr"))}
+    L = loop.linearise(form, np.array([q for q, _ in pts], dtype=float), np.array([dq for _, dq in pts], dtype=float))
 
     def stable(dt: float) -> tuple[bool, int | None]:
         rho = _radii(loop, form, observer, dt, L)
@@ -228,7 +235,8 @@ def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
     hit = _LIMITS.get(key)
     if hit is not None and hit[0] is d:
         return hit[1]
-    out = {form: sample_limit(d, form, observer) for form in FORMS}
+    loop = SampledLoop(d)
+    out = {form: sample_limit(d, form, observer, loop=loop) for form in FORMS}
     _LIMITS[key] = (d, out)
     return out
 

@@ -26,7 +26,7 @@ from sympy.polys.fields import FracElement
 from sympy.polys.matrices import DomainMatrix
 from sympy.polys.polyerrors import CoercionFailed
 
-from derive.dynamics.program import free_symbols
+from derive.dynamics.program import free_symbols, postorder
 from derive.dynamics.trigpoly import constant_angles
 
 
@@ -74,8 +74,48 @@ class Field:
 
     # -- conversion -----------------------------------------------------------------------
     def __call__(self, expr: sp.Expr) -> FracElement:
-        """``expr`` as a field element (sin/cos of sums expanded first)."""
+        """``expr`` as a field element (sin/cos of sums expanded first). Each distinct
+        subexpression is converted once (memo shared by every call on this field), so the
+        shared-subexpression entries of a chain's dynamics convert in time proportional to
+        their DAG; a node this walk does not know goes through SymPy's own conversion."""
         expr = sp.sympify(expr)
+        memo = self.__dict__.setdefault("_memo", {})
+        for node in postorder([expr]):
+            if node not in memo:
+                memo[node] = self._node(node, memo)
+        out = memo[expr]
+        return out if out is not None else self._convert(expr)   # _convert raises Undecidable
+
+    def _node(self, e: sp.Basic, memo: dict) -> FracElement | None:
+        """One node from its converted arguments; None where the node is not an element
+        by itself (an angle, a sum of angles: fine under sin/cos only)."""
+        if e in self._forward:
+            return self.K(self._forward[e])
+        if e.is_Rational:
+            return self.K(sp.QQ(int(e.p), int(e.q)))
+        if e.is_Symbol:
+            return None if e in self.angles else self._convert(e)
+        args = [memo[a] for a in e.args]
+        if any(a is None for a in args) and not isinstance(e, (sp.sin, sp.cos)):
+            return None
+        if e.is_Add:
+            out = self.K.zero
+            for a in args:
+                out += a
+            return out
+        if e.is_Mul:
+            out = self.K.one
+            for a in args:
+                out *= a
+            return out
+        if e.is_Pow and e.exp.is_Integer:
+            return args[0] ** int(e.exp)
+        if isinstance(e, (sp.sin, sp.cos)):
+            return self._convert(sp.expand_trig(e))   # sin/cos of a sum or a multiple of angles
+        return self._convert(e)
+
+    def _convert(self, expr: sp.Expr) -> FracElement:
+        """SymPy's conversion of one expression (sin/cos of sums expanded first)."""
         if expr.has(*self._forward):
             expr = sp.expand_trig(expr)
         expr = expr.xreplace(self._forward)

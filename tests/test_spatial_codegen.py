@@ -69,3 +69,37 @@ def test_generated_python_module_is_within_1e12_of_the_40_digit_reference(genera
         for got, want in pairs:
             worst = max(worst, _rel(got, want))
     assert worst <= 1e-12, worst
+
+
+FUZZ = Path(__file__).resolve().parent / "fuzz" / "fuzz_driver.c"
+
+
+def _fuzz_exe(generated, tmp_path: Path, flags: list[str]) -> Path:
+    d, out = generated
+    c, name = out / "c", d.arm.name
+    defines = [f"-DARM={name}", f"-DARM_UPPER={name.upper()}", f'-DARM_H="{name}.h"', f"-I{c}"]
+    return compile_c("gcc", [FUZZ, *library_sources(c, name)], tmp_path / "fz", [*defines, *flags])
+
+
+def _fuzz_passed(stdout: str, iterations: int) -> None:
+    assert re.search(rf"^{iterations} passed, 0 failed$", stdout, re.M), stdout
+    assert int(re.search(r"(\d+) error codes returned", stdout).group(1)) > iterations // 10
+
+
+def test_generated_c_fuzz_driver_under_address_and_undefined_sanitizers(generated, tmp_path) -> None:
+    """The header's contract (an error code leaves state and u untouched, success gives finite
+    results) under random, extreme, NaN and Inf inputs, with -fsanitize=address,undefined."""
+    iterations = 20_000
+    exe = _fuzz_exe(generated, tmp_path, ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"])
+    proc = subprocess.run([str(exe), str(iterations)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+    _fuzz_passed(proc.stdout, iterations)
+
+
+def test_generated_c_fuzz_driver_under_valgrind(generated, tmp_path) -> None:
+    iterations = 2_000
+    exe = _fuzz_exe(generated, tmp_path, ["-O0", "-g"])
+    proc = subprocess.run(["valgrind", "--error-exitcode=3", "--leak-check=full", "--errors-for-leak-kinds=all",
+                           str(exe), str(iterations)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0 and "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
+    _fuzz_passed(proc.stdout, iterations)

@@ -13,7 +13,7 @@ import pytest
 
 import derive
 from derive.cli import main
-from derive.control.sampling import MARGIN, limits, sample_limit
+from derive.control.sampling import _Z_ONLY, MARGIN, limits, sample_limit
 from derive.errors import DeriveError
 from derive.sim.backends import Backend
 from derive.sim.simulate import Plant, run, true_plant
@@ -41,11 +41,29 @@ def test_one_link_arm_of_0_1_m_gets_a_limit_near_0_33_ms():
         assert 0.30e-3 < lim.raw < 0.36e-3
 
 
-def test_implicit_observer_step_leaves_the_limit_where_it_is(paper):
-    """Backward Euler on z alone does not move the limit: in the sampled loop z + W theta' = B dhat
-    telescopes, and the fast mode is the held velocity feedback B^-1 W theta' of u, not z's step."""
-    exp, imp = sample_limit(paper, "dobc", "explicit"), sample_limit(paper, "dobc", "implicit")
-    assert imp.raw == pytest.approx(exp.raw, rel=0.03)
+def test_backward_euler_of_z_alone_leaves_the_limit_but_the_implicit_estimate_lifts_it(paper):
+    """Backward Euler on z with the measurement taken before the step does not move the limit: in the
+    sampled loop z + W theta' = B dhat telescopes, and the fast mode is the held velocity feedback
+    B^-1 W theta' of u. The generated implicit step (eq. 21 at the end of the step, theta'_k included)
+    makes that feedback W (J + dt W)^-1 J theta' and lifts the limit to the predictive law's own."""
+    exp, z_only = sample_limit(paper, "dobc", "explicit"), sample_limit(paper, "dobc", _Z_ONLY)
+    assert z_only.raw == pytest.approx(exp.raw, rel=0.03)
+    imp = limits(paper, "implicit")
+    assert imp["dobc"].raw > 30 * exp.raw
+    assert imp["dobc"].raw == pytest.approx(limits(paper)["mpc"].raw, rel=0.03)   # the law u* limits it now
+    assert 20 * limits(paper)["npid"].raw < imp["npid"].raw < imp["dobc"].raw      # W_dt K2 e limits NPID
+
+
+def test_implicit_limits_of_the_one_link_arm_are_the_predictive_laws_not_2_j_over_w():
+    d = derive.derive(_small_arm())
+    euler, imp = limits(d, "explicit"), limits(d, "implicit")
+    assert euler["dobc"].raw < 0.4e-3 < 0.3 < imp["npid"].raw < imp["dobc"].raw
+    assert imp["dobc"].raw == pytest.approx(euler["mpc"].raw, rel=0.05)
+
+
+def test_sample_limit_rejects_an_unknown_discretisation(paper):
+    with pytest.raises(ValueError, match="expected a form of .* and an observer of .*got 'dobc', 'trapezoid'"):
+        sample_limit(paper, "dobc", "trapezoid")
 
 
 @pytest.fixture(scope="module")
@@ -110,5 +128,9 @@ def test_generate_warns_and_show_prints_the_limits(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "warning: simulation.sample_time of f6_small_arm: sample_time = 2 ms is above the DOBC limit" in err
     assert main(["show"]) == 0
-    out = capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert max(map(len, text[text.index("Sample time:"):].splitlines())) <= 100
+    out = " ".join(text.split())   # the sample-time paragraph is wrapped to 100 columns
     assert "Sample time: largest sample time" in out and "DOBC 11." in out and "NPID 11." in out
+    imp = limits(derive.derive(derive.load_arm()), "implicit")
+    assert f"DOBC {imp['dobc'].limit * 1e3:.3g} ms, NPID {imp['npid'].limit * 1e3:.3g} ms with --observer implicit" in out

@@ -102,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
     code = exit_code(results)
     sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))
     if d is not None:
-        from derive.control.sampling import summary
+        from derive.control.sampling import summary_all
 
-        sys.stdout.write(f"Sample time of {d.arm.name}: {summary(d)}\n")
+        sys.stdout.write(f"Sample time of {d.arm.name}: {summary_all(d)}\n")
     if args.report is not None:
         write_file(args.report, render_markdown(d, results, seconds, code))
     if args.json is not None:

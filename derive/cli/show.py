@@ -258,7 +258,7 @@ def run(args) -> int:
     if not args.latex:
         import textwrap
 
-        from derive.control.sampling import summary
+        from derive.control.sampling import summary_all
 
-        sys.stdout.write("\n" + textwrap.fill(f"Sample time: {summary(d)}", 100, subsequent_indent="  ") + "\n")
+        sys.stdout.write("\n" + textwrap.fill(f"Sample time: {summary_all(d)}", 100, subsequent_indent="  ") + "\n")
     return 0

@@ -15,6 +15,11 @@ solved for here rather than copied from eq. (31):
 Printed eq. (31) lacks the K2 on e(0); it agrees only when K2 = I (see
 ``derive check``). P, D, I, N are the Jacobians of u* - dhat(t) in e, e',
 int e and the remainder: eq. (35-38).
+
+The estimate of the PID form is dhat = -B^-1 W xi with the PID error
+xi = C^-1 (e' + K2 e + K1 int e) (eq. 32), so u = u* + B^-1 W xi. The
+sampled form that matches the backward-Euler observer (derive.codegen.kernels,
+``--observer implicit``) replaces W by W_dt = W (J + dt W)^-1 J there.
 """
 from __future__ import annotations
 
@@ -38,7 +43,8 @@ class Npid:
     dhat_rate: eq. (29) in e'', e', e (n x 1); dhat_t: eq. (30) with dhat(0)
     symbols; dhat0: the derived initial estimate in e(0), e'(0) (n x 1);
     u_dobc: u* - dhat with dhat of eq. (22) (n x 1, eq. 27);
-    P, D, I: n x n gains (eq. 35-37); N: n x 1 (eq. 38).
+    P, D, I: n x n gains (eq. 35-37); N: n x 1 (eq. 38); xi: the PID error
+    C^-1 (e' + K2 e + K1 int e) (n x 1), so that u_npid = u* + B^-1 W xi.
     """
 
     dhat_rate: sp.Matrix
@@ -50,6 +56,7 @@ class Npid:
     D: sp.Matrix
     I: sp.Matrix
     N: sp.Matrix
+    xi: sp.Matrix
 
 
 def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
@@ -79,9 +86,10 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
     if constant.xreplace(solution[0]).applyfunc(sp.cancel) != sp.zeros(n, 1):
         raise DerivationError("the derived dhat(0) leaves a constant in eq. (30)")
     dhat_pid = rate.xreplace(antiderivative)  # eq. (32): dhat(t) with its constant removed
+    xi = mpc.Cout.inv() * (de + mpc.K2 * e + mpc.K1 * int_e)   # dhat_pid = -B^-1 W xi
     u_npid = mpc.u_star - dhat_pid  # kept factored: its Jacobians keep the structure of J, G
     P, D, I = (jacobian(u_npid, v) for v in (e, de, int_e))
     zero = {**{a: 0 for a in e}, **{a: 0 for a in de}, **{a: 0 for a in int_e}}
     N = matrix_xreplace(u_npid, zero)
     return Npid(dhat_rate=rate, dhat_t=dhat_t, dhat0=dhat0, u_dobc=mpc.u_star - obs.dhat,
-                u_npid=u_npid, P=P, D=D, I=I, N=N)
+                u_npid=u_npid, P=P, D=D, I=I, N=N, xi=xi)

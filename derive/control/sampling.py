@@ -1,24 +1,45 @@
 """The largest sample time of each generated controller form (MPC eq. 15, DOBC eq. 21-27, NPID eq. 34).
 
 The sampled closed loop is the plant J theta'' + G = B u (eq. 12) under a zero-order hold on u,
-and the controller exactly as generated: u_k from the law at the sample, and its state stepped
-once per sample, the NPID integral by forward Euler (int_e + dt e) and the observer state by
-forward Euler (z + dt W y, J y = G - B u - W theta' - z) or backward Euler (the same with
-(J + dt W) y = G - B u - W theta' - z: z_{k+1} = z_k + dt W J^-1 (... - z_{k+1})).
+and the controller exactly as generated, in one of two discretisations (``derive generate
+--observer``):
+
+* ``explicit`` (the default, forward Euler): u_k from the law at the sample, then the form's state is stepped by
+  forward Euler: the NPID integral int_e + dt e_k, the observer z + dt W y with
+  J y = G - B u_k - W theta'_k - z_k.
+* ``implicit``: DOBC first takes the backward-Euler step of eq. (21) over the interval that just
+  ended, with the new measurement and the voltage u_{k-1} held over it,
+  (J(theta_k) + dt W) y = G(theta_k, theta'_k) - B u_{k-1} - W theta'_k - z_{k-1},
+  z_k = z_{k-1} + dt W y, and then applies u_k = u* - B^-1 (z_k + W theta'_k) (state: z and the
+  applied u). NPID applies u = u* + B^-1 W x, (J + dt W) x = J xi, xi = C^-1 (e' + K2 e + K1 int e):
+  the PID form with W replaced by W_dt = W (J + dt W)^-1 J, the gain the backward-Euler observer
+  applies (derive.codegen.kernels); the integral stays forward Euler.
+
+Why the ordering matters: with s = z + W theta' = B dhat, the forward-Euler loop telescopes to
+s_k = s_{k-1} + W (theta'_k - theta'_{k-1}) + dt W J^-1 (G - B u_{k-1} - s_{k-1}), and u holds the
+velocity feedback -B^-1 W theta' over a sample: the error e' = B d - s steps by I - dt W J^-1, stable
+only for dt < 2 / |lambda(W J^-1)| (2 J / w for one joint). A backward-Euler step of z that still
+uses the measurement taken before the step ((J + dt W) y = G - B u_k - W theta'_k - z_k) leaves that
+feedback as it is and the limit where it was (12.9 against 13.0 ms on the default arm;
+``_Z_ONLY``). Evaluating eq. (21) at the end of the step, the new theta'_k included, makes the
+estimate's own step implicit: the velocity feedback becomes W (J + dt W)^-1 J theta' and the error
+steps by (I + dt W J^-1)^-1, stable for every dt when W J^-1 has its eigenvalues in the right
+half-plane. What limits the sample time then is the predictive law (and, for NPID, the
+proportional part of W_dt K2 e, about J K2 / dt at large dt).
 
 Linearised at an operating point (theta0, theta0', reference y_d = C theta0, y_d' = C theta0',
 y_d'' = 0, u0 the law's output): x = (theta, theta'), c the form's state,
 
     x_{k+1} = Phi x_k + Gamma u_k,  (Phi, Gamma) = ZOH of (df/dx, df/du) over dt,
-    u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k,
+    u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k   (explicit),
 
-and the loop is stable at that point when the spectral radius of
-[[Phi + Gamma U_x, Gamma U_c], [S_x + S_u U_x, S_c + S_u U_c]] is below 1. The limit is the
-largest dt (found by doubling, then bisection to 1 %) for which that holds at every operating
-point of a grid of configurations and speeds (every angle on a grid, the stated speed box's
-vertices and rest); the figure reported is 0.9 of it: the stated margin for the frozen-time
-linearisation over a finite grid. Jacobians are central differences of the laws evaluated in
-double precision (numbers to 1e-6 relative, far below the margin).
+(for the implicit DOBC the loop's state is (x_k, z_{k-1}, u_{k-1})), and the loop is stable at that
+point when the spectral radius of its transition matrix is below 1. The limit is the largest dt
+(found by doubling, then bisection to 1 %) for which that holds at every operating point of a grid
+of configurations and speeds (every angle on a grid, the stated speed box's vertices and rest); the
+figure reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite
+grid. Jacobians are central differences of the laws evaluated in double precision (numbers to 1e-6
+relative, far below the margin).
 """
 from __future__ import annotations
 
@@ -32,7 +53,8 @@ import sympy as sp
 from derive.dynamics.program import lambdify
 
 FORMS = ("mpc", "dobc", "npid")
-OBSERVERS = ("explicit", "implicit")
+OBSERVERS = ("explicit", "implicit")   # derive generate --observer
+_Z_ONLY = "z-only"   # backward Euler of z before the measurement moves: an analysis variant (docstring)
 MARGIN = 0.9
 DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
@@ -92,6 +114,8 @@ class SampledLoop:
         self.C = np.array(d.C.tolist(), dtype=float)
         self.laws = {"mpc": _batched(x, d.measured(d.u_star)), "dobc": _batched(x + list(s.z), d.measured(d.u_dobc)),
                      "npid": _batched(x + list(s.int_e), d.measured(d.u_npid))}
+        # u_npid = u* + B^-1 W xi (derive.control.npid): the implicit NPID replaces W by W_dt there
+        self.xi = _batched(x + list(s.int_e), d.measured(d.numeric(d.npid.xi)))
 
     def mass(self, Q: np.ndarray) -> np.ndarray:
         """J at the rows of Q: P x n x n."""
@@ -104,13 +128,17 @@ class SampledLoop:
 
     def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
         """Jacobians at the operating points (rows of Q, DQ), stacked over the points: A = df/dx,
-        Bu = df/du, Ux = du/dx, Uc = du/dc (the form's state c), J, dr = d(G - W theta')/dx."""
+        Bu = df/du, Ux = du/dx, Uc = du/dc (the form's state c), J, dr = d(G - W theta')/dx,
+        Xi = dxi/d(x, c) for NPID (xi of derive.control.npid, u_npid = u* + B^-1 W xi), else zeros."""
         n, P = self.n, Q.shape[0]
         ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
         law = self.laws[form]
 
         def u_of(XC):
             return law(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
+
+        def xi_of(XC):
+            return self.xi(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
 
         XC0 = np.hstack([Q, DQ] + ([-DQ @ self.W.T] if form == "dobc" else [np.zeros((P, n))] if form == "npid"
                                    else []))
@@ -123,8 +151,9 @@ class SampledLoop:
         # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
         # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
         dr = _jac(self.G, np.hstack([Q, DQ])) - np.hstack([np.zeros((n, n)), self.W])
+        Xi = _jac(xi_of, XC0) if form == "npid" else np.zeros((P, n, 3 * n))
         return {"A": F[:, :, :2 * n], "Bu": F[:, :, 2 * n:], "Ux": Uxc[:, :, :2 * n], "Uc": Uxc[:, :, 2 * n:],
-                "J": self.mass(Q), "dr": dr}
+                "J": self.mass(Q), "dr": dr, "Xi": Xi}
 
 
 def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -149,11 +178,21 @@ def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray
 
 
 def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None) -> SampleLimit:
-    """The largest stable sample time of ``form`` (module docstring), with the stated margin
-    (``loop``: the derivation's SampledLoop when the caller has it)."""
-    loop = SampledLoop(d) if loop is None else loop
+    """The largest stable sample time of ``form`` (FORMS) with the observer discretisation ``observer``
+    (OBSERVERS; the module docstring), with the stated margin (``loop``: the derivation's SampledLoop
+    when the caller has it). Raises ValueError for an unknown form or discretisation."""
+    if form not in FORMS or observer not in OBSERVERS + (_Z_ONLY,):
+        raise ValueError(f"sample_limit: expected a form of {FORMS} and an observer of {OBSERVERS}, "
+                         f"got {form!r}, {observer!r}")
     pts = operating_points(d) if points is None else points
-    L = loop.linearise(form, np.array([q for q, _ in pts], dtype=float), np.array([dq for _, dq in pts], dtype=float))
+
+    def linearise() -> tuple[SampledLoop, dict]:
+        lp = _loop(d) if loop is None else loop
+        return lp, lp.linearise(form, np.array([q for q, _ in pts], dtype=float),
+                                np.array([dq for _, dq in pts], dtype=float))
+
+    # both discretisations linearise the same laws at the default points: once per derivation and form
+    loop, L = _cached(_LINEAR, d, form, linearise) if points is None else linearise()
 
     def stable(dt: float) -> tuple[bool, int | None]:
         rho = _radii(loop, form, observer, dt, L)
@@ -210,52 +249,98 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
     aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
     E = _expm(aug * dt)
     Phi, Gam = E[:, :m, :m], E[:, :m, m:]
-    top = Phi + Gam @ L["Ux"]
+    Ux, Uc = L["Ux"], L["Uc"]
+    eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
-        return np.abs(np.linalg.eigvals(top)).max(axis=-1)
+        return np.abs(np.linalg.eigvals(Phi + Gam @ Ux)).max(axis=-1)
     if form == "npid":                      # int_e + dt (yd - C theta)
+        if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
+            BW = np.linalg.solve(loop.B, loop.W)
+            Wdt = loop.W @ np.linalg.solve(L["J"] + dt * loop.W, L["J"])
+            F = np.linalg.solve(loop.B, Wdt) - BW                      # B^-1 (W_dt - W)
+            Ux, Uc = Ux + F @ L["Xi"][:, :, :m], Uc + F @ L["Xi"][:, :, m:]
         Sx = np.broadcast_to(np.hstack([-dt * loop.C, np.zeros((n, n))]), (P, n, m))
-        Sc = np.broadcast_to(np.eye(n), (P, n, n))
-        Su = np.zeros((P, n, n))
-    else:
-        A = L["J"] + (dt * loop.W if observer == "implicit" else 0.0)
+        Sc, Su = eye, np.zeros((P, n, n))
+    elif observer == "implicit":            # state (x_k, z_{k-1}, u_{k-1}): z_k first, then u_k
+        K = dt * loop.W @ np.linalg.inv(L["J"] + dt * loop.W)
+        Zx, Zz, Zu = K @ L["dr"], eye - K, -K @ loop.B                 # z_k = Zx x_k + Zz z_{k-1} + Zu u_{k-1}
+        Vx, Vz, Vu = Ux + Uc @ Zx, Uc @ Zz, Uc @ Zu                    # u_k in the same
+        M = np.concatenate([np.concatenate([Phi + Gam @ Vx, Gam @ Vz, Gam @ Vu], axis=-1),
+                            np.concatenate([Zx, Zz, Zu], axis=-1),
+                            np.concatenate([Vx, Vz, Vu], axis=-1)], axis=-2)
+        return np.abs(np.linalg.eigvals(M)).max(axis=-1)
+    else:                                   # explicit, or the z-only backward step (_Z_ONLY)
+        A = L["J"] + (dt * loop.W if observer == _Z_ONLY else 0.0)
         K = dt * loop.W @ np.linalg.inv(A)
-        Sx, Sc, Su = K @ L["dr"], np.eye(n) - K, -K @ loop.B
-    M = np.concatenate([np.concatenate([top, Gam @ L["Uc"]], axis=-1),
-                        np.concatenate([Sx + Su @ L["Ux"], Sc + Su @ L["Uc"]], axis=-1)], axis=-2)
+        Sx, Sc, Su = K @ L["dr"], eye - K, -K @ loop.B
+    M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
+                        np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
     return np.abs(np.linalg.eigvals(M)).max(axis=-1)
 
 
 _LIMITS: dict = {}
+_LINEAR: dict = {}
+_LOOPS: dict = {}
+
+
+def _cached(store: dict, d, key, make):
+    """``make()`` cached per derivation object (the entry keeps ``d`` alive, so ids stay unique)."""
+    hit = store.get((id(d), key))
+    if hit is not None and hit[0] is d:
+        return hit[1]
+    out = make()
+    store[(id(d), key)] = (d, out)
+    return out
+
+
+def _loop(d) -> SampledLoop:
+    """The derivation's SampledLoop (one per derivation, shared by the forms and discretisations)."""
+    return _cached(_LOOPS, d, "loop", lambda: SampledLoop(d))
 
 
 def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
-    """The sample-time limit of every form (FORMS) for one derivation (cached per derivation)."""
-    key = (id(d), observer)
-    hit = _LIMITS.get(key)
-    if hit is not None and hit[0] is d:
-        return hit[1]
-    loop = SampledLoop(d)
-    out = {form: sample_limit(d, form, observer, loop=loop) for form in FORMS}
-    _LIMITS[key] = (d, out)
-    return out
+    """The sample-time limit of every form (FORMS) with the observer discretisation ``observer``
+    (cached per derivation; the MPC law has no observer, its limit is shared)."""
+    def make() -> dict[str, SampleLimit]:
+        loop = _loop(d)
+        out = {form: sample_limit(d, form, observer, loop=loop) for form in FORMS
+               if form != "mpc" or observer == "explicit"}
+        if "mpc" not in out:
+            out = {"mpc": limits(d, "explicit")["mpc"], **out}
+        return out
+
+    return _cached(_LIMITS, d, observer, make)
 
 
 def _ms(x: float) -> str:
     return "none below 1 s" if math.isinf(x) else f"{x * 1e3:.3g} ms"
 
 
+def _how(lim: dict[str, SampleLimit]) -> str:
+    return (f"sampled loop, zero-order hold, linearised over {lim['dobc'].points} operating points, "
+            f"{int(round((1 - MARGIN) * 100))} % margin")
+
+
 def summary(d, observer: str = "explicit") -> str:
-    """One line: the largest sample time of each form, as check, show and the headers print it."""
+    """One line: the largest sample time of each form with ``observer``, as the generated headers state it."""
     lim = limits(d, observer)
     parts = ", ".join(f"{f.upper()} {_ms(lim[f].limit)}" for f in FORMS)
     return (f"largest sample time (sampled loop, zero-order hold, {observer} observer step, linearised over "
             f"{lim['dobc'].points} operating points, {int(round((1 - MARGIN) * 100))} % margin): {parts}")
 
 
+def summary_all(d) -> str:
+    """One line with both discretisations, as ``derive check`` and ``derive show`` print it."""
+    e, i = limits(d, "explicit"), limits(d, "implicit")
+    return (f"largest sample time ({_how(e)}): MPC {_ms(e['mpc'].limit)}; DOBC {_ms(e['dobc'].limit)}, "
+            f"NPID {_ms(e['npid'].limit)} with the forward-Euler observer step (derive generate's default); "
+            f"DOBC {_ms(i['dobc'].limit)}, NPID {_ms(i['npid'].limit)} with --observer implicit")
+
+
 def too_slow(d, sample_time: float, forms=FORMS, observer: str = "explicit") -> list[str]:
-    """Sentences for the forms whose limit ``sample_time`` [s] exceeds (empty when none)."""
+    """Sentences for the forms whose limit (with ``observer``) ``sample_time`` [s] exceeds (empty when none)."""
     lim = limits(d, observer)
-    return [f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)} "
+    how = "" if observer == "explicit" else f" with --observer {observer}"
+    return [f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)}{how} "
             f"(the sampled loop is unstable from {_ms(lim[f].raw)} at some configuration)"
             for f in forms if f in lim and sample_time > lim[f].limit]

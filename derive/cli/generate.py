@@ -6,11 +6,12 @@ from pathlib import Path
 
 from derive.codegen.files import REALS, generate_files
 from derive.codegen.emit import write_tree
-from derive.codegen.kernels import ParamsMode
+from derive.codegen.kernels import OBSERVER_STEPS, ParamsMode
 
 
 def add_arguments(parser) -> None:
-    """CLI: derive generate [ARM] [--out DIR] [--real double|float] [--params baked|runtime]."""
+    """CLI: derive generate [ARM] [--out DIR] [--real double|float] [--params baked|runtime]
+    [--observer explicit|implicit]."""
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
@@ -19,6 +20,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--real", choices=REALS, default="double", help="C real type (default double)")
     parser.add_argument("--params", choices=[m.value for m in ParamsMode], default="baked",
                         help="parameters folded into constants (baked) or read at run time")
+    parser.add_argument("--observer", choices=OBSERVER_STEPS, default="explicit",
+                        help="the observer's step: explicit (forward Euler of eq. 21, the default) or implicit "
+                             "(backward Euler, (J + dt W) y = ... solved numerically: no W J^-1 sample-time limit)")
 
 
 def run(args) -> int:
@@ -37,7 +41,7 @@ def run(args) -> int:
         check_ranges(d, args.real)   # an arm the chosen real type cannot hold is refused before any warning
         bar.update()
         bar.set_postfix_str("sample-time limits")
-        sentence = summary(d)
+        sentence = summary(d, args.observer)
         bar.update()
 
         started = 0
@@ -50,10 +54,10 @@ def run(args) -> int:
 
         notes: list[str] = []
         files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
-                               sample_time=sentence, stage=stage)
+                               sample_time=sentence, stage=stage, observer=args.observer)
         bar.update()
     report_warnings(d)
-    for text in too_slow(d, arm.simulation.sample_time):
+    for text in too_slow(d, arm.simulation.sample_time, observer=args.observer):
         print(f"derive: warning: simulation.sample_time of {arm.name}: {text}", file=sys.stderr)
     target = Path(args.out) / arm.name
     done = write_tree(target, files)   # only derive's previous files are replaced; sim/, build/ stay

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from derive.codegen.accuracy import CONST, KernelModel, Tape, weights
+from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
 
@@ -54,12 +55,14 @@ class ApiBounds:
     (the self-test's dyadic vectors); otherwise each carries one rounding."""
 
     def __init__(self, d: Derivation, real: str, mode: ParamsMode = ParamsMode.BAKED, exact_inputs: bool = True,
-                 u_max: Sequence[float] | None = None):
+                 u_max: Sequence[float] | None = None, observer: str = "explicit"):
         self.n = n = d.n
+        self.implicit = observer == "implicit"   # dobc_step's bounds: explicit step only (testvectors.IMPLICIT_RULE)
         self.w = weights(real, exact_inputs)
         self.u_max = np.array(u_max if u_max is not None else [
             float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors])
-        models = {s.name: KernelModel(s) for s in kernel_specs(d, mode)}
+        self._specs = {s.name: s for s in kernel_specs(d, mode, observer)}
+        models = {name: KernelModel(s) for name, s in self._specs.items()}
         params = [float(v) for _, v in d.values] if mode is ParamsMode.RUNTIME else []
 
         def start() -> tuple[Tape, dict]:
@@ -87,6 +90,10 @@ class ApiBounds:
         applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
         (z_next,) = call(t, "observer", {**ports, "u": applied})
         self._entries["dobc"] = _Entry(t, (*u, *z_next), tuple(ports["z"]), (n, n))
+
+    def operations(self, name: str) -> int:
+        """The size (CasADi nodes) of kernel ``name``: K of the coarse float rule."""
+        return int(to_function(self._specs[name]).n_nodes())
 
     def _eval(self, name: str, x, s=None, dt=0.0, keep=None, clip=None):
         """Per output port: values (K, size), bounds (K, size), Jacobians in the state (K, size, n)."""

@@ -73,24 +73,30 @@ GENERATE_STAGES = ("kernels", "C and self-test vectors", "Python")
 
 def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "double",
                    mode: ParamsMode = ParamsMode.BAKED, notes: list[str] | None = None,
-                   sample_time: str | None = None, stage: Callable[[str], None] | None = None) -> dict[str, str]:
+                   sample_time: str | None = None, stage: Callable[[str], None] | None = None,
+                   observer: str = "explicit") -> dict[str, str]:
     """Every generated file of one arm, with a manifest (no timestamps, no paths).
 
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
     load_arm took of the very bytes it validated. Warnings about the
     accuracy the real type can give are appended to ``notes``. ``sample_time``: the
     sentence of derive.control.sampling.summary, stated in the headers (derive generate passes it).
-    ``stage(name)``, when given, is called as each of GENERATE_STAGES begins (a progress bar)."""
+    ``stage(name)``, when given, is called as each of GENERATE_STAGES begins (a progress bar).
+    ``observer``: the observer step (derive.codegen.kernels.OBSERVER_STEPS); the manifest's
+    options name it when it is not the default."""
     stage = stage or (lambda name: None)
     stage("kernels")
-    functions = kernel_functions(d, mode)  # each kernel built once, printed for C and Python
-    v = arm_view(d, real, mode, functions, sample_time)
-    py = v if real == "double" else arm_view(d, "double", mode, functions, sample_time)
+    functions = kernel_functions(d, mode, observer)  # each kernel built once, printed for C and Python
+    v = arm_view(d, real, mode, functions, sample_time, observer)
+    py = v if real == "double" else arm_view(d, "double", mode, functions, sample_time, observer)
     stage("C and self-test vectors")
     c = c_files(d, real, mode, notes, v)
     stage("Python")
     files = {**c, **python_files(d, mode, py)}
-    files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, {"real": real, "params": mode.value})
+    options: dict[str, object] = {"real": real, "params": mode.value}
+    if observer != "explicit":
+        options["observer"] = observer
+    files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, options)
     return files
 
 

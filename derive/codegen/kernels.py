@@ -90,7 +90,10 @@ def _flat(m: sp.Matrix) -> tuple:
     return tuple(m[i, j] for i in range(m.rows) for j in range(m.cols))
 
 
-def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
+OBSERVER_STEPS = ("explicit", "implicit")   # derive generate --observer (derive.control.sampling.OBSERVERS)
+
+
+def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") -> tuple[KernelSpec, ...]:
     """The kernels of an arm's controller (shapes for n joints, row-major).
 
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
@@ -101,7 +104,21 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     (runtime). The discretisation is part of the maths: forward Euler,
     int_next = int_e + dt e and z_next = z + dt z'; the glue only chooses
     (an integrator held at a voltage limit keeps int_e).
+
+    ``observer = "implicit"`` (derive.control.sampling's module docstring): the
+    observer kernel takes the backward-Euler step of eq. (21) over the interval
+    that just ended, (J + dt W) y = G - B u - W theta' - z with the new
+    measurement and the voltage u held over the interval, z_next = z + dt W y,
+    and the glue applies the DOBC law to z_next; dobc_init also returns u0 =
+    B^-1 (G - W theta' - z0), the held voltage that leaves z0 in place at the
+    first sample. The NPID law matched to it is u = u* + B^-1 W x with
+    (J + dt W) x = J xi, xi = C^-1 (e' + K2 e + K1 int e): the PID form with W
+    replaced by W_dt = W (J + dt W)^-1 J (derive.control.npid), solved
+    numerically like every J system. Raises ValueError for another ``observer``.
     """
+    if observer not in OBSERVER_STEPS:
+        raise ValueError(f"kernel_specs: expected an observer step of {OBSERVER_STEPS}, got {observer!r}")
+    implicit = observer == "implicit"
     s = d.dynamics.sym
     n = d.n
     runtime = mode is ParamsMode.RUNTIME
@@ -123,7 +140,25 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     dhat0 = law(npid.dhat0)
     W, B = d.observer.W, d.dynamics.B
     y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
-    solve = LinearSolve(y, value(d.dynamics.J), value(d.observer.J_solve_rhs))
+    J = value(d.dynamics.J)
+    A = J + dt_sym * value(W) if implicit else J      # backward Euler: J + dt W
+    solve = LinearSolve(y, A, value(d.observer.J_solve_rhs))
+    z0 = value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)
+    if implicit:
+        xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
+        Binv = value(B).inv()   # B is diagonal (eq. 12)
+        npid_u = law(d.mpc.u_star) + Binv * value(W) * sp.Matrix(xs)
+        npid_solves = (LinearSolve(xs, A, law(J * value(npid.xi))),)
+        npid_doc = "u = u* + B^-1 W x, (J + dt W) x = J xi: eq. 34 with W_dt = W (J + dt W)^-1 J"
+        z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),
+                      Port("u0", _flat(Binv * value(d.dynamics.G) - dhat0),
+                           "u0 = B^-1 (G - W theta' - z0): the first backward-Euler step leaves z0"))
+        observer_doc = ("Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
+                        "(J + dt W) y = G - B u - W theta' - z solved numerically")
+    else:
+        npid_u, npid_solves, npid_doc = law(npid.u_npid), (), "u = P e + D e' + I int e + N, eq. 34"
+        z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),)
+        observer_doc = "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically"
     return (
         KernelSpec("gains", (theta, *params), (
             # not P, D, I: C99's <complex.h> defines I (generated names are never one capital)
@@ -134,20 +169,18 @@ def kernel_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
         KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star)), "u*, eq. 15"),),
                    "Nonlinear predictive control law u* (eq. 15)"),
         KernelSpec("npid", (*x, Port("int_e", s.int_e, "integral of e (eq. 34)"), dt, *params), (
-            Port("u", _flat(law(npid.u_npid)), "u = P e + D e' + I int e + N, eq. 34"),
+            Port("u", _flat(npid_u), npid_doc),
             Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
-            "Nonlinear PID predictive control law (eq. 34-38) and its integrator step"),
+            "Nonlinear PID predictive control law (eq. 34-38) and its integrator step", npid_solves),
         KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc)), "u* - dhat, eq. 27"),),
                    "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
         KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
             Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
-                 "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
-            "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically",
-            (solve,)),
-        KernelSpec("dobc_init", (*x[:4], *params), (
-            Port("z0", _flat(value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)),
-                 "z(0) = B dhat(0) - W theta'(0)"),),
-            "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"),
+                 "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21" if implicit
+                 else "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
+            observer_doc, (solve,)),
+        KernelSpec("dobc_init", (*x[:4], *params), z0_outputs,
+                   "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"),
         KernelSpec("dhat", (dtheta, z, *params), (
             Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
             "Disturbance estimate of the observer state (eq. 22)"),

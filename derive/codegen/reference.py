@@ -6,7 +6,8 @@ Each law is compiled straight from the SymPy matrices of the Derivation
 (:mod:`derive.codegen.balls`), and the step functions replicate the documented
 discretisation of the generated code: forward Euler for the integral of e
 (NPID) and for the observer state z (DOBC), the integrator held while a
-voltage limit is active, the observer fed the applied (limited) voltage.
+voltage limit is active, the observer fed the applied (limited) voltage; with
+``observer="implicit"`` the backward-Euler steps of derive.codegen.kernels.
 
 Every result is a ball (python-flint ``arb``) whose radius bounds its error:
 :func:`certified` proves that a vector carries ``DIGITS`` correct digits
@@ -47,11 +48,13 @@ class Reference:
     Vectors in and out are sequences of numbers or balls; ``prec`` is the
     working precision in bits (raise it when :func:`certified` fails)."""
 
-    def __init__(self, d: Derivation, u_max: Sequence[float] | None = None, prec: int = PRECISION):
+    def __init__(self, d: Derivation, u_max: Sequence[float] | None = None, prec: int = PRECISION,
+                 observer: str = "explicit"):
         s = d.dynamics.sym
         self._d = d
         self.n = n = d.n
         self.prec = prec
+        self.implicit = observer == "implicit"   # the backward-Euler step (derive.codegen.kernels)
         e, _ = d.tracking_error
         x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
 
@@ -70,6 +73,8 @@ class Reference:
         self._dhat = fn("dhat", list(s.dtheta + s.z), d.dhat)
         self._z0 = fn("dobc_init", x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
         self._J = fn("J", list(s.theta), d.J)
+        self._xi = fn("xi", x + list(s.int_e), d.numeric(d.npid.xi))   # u_npid = u* + B^-1 W xi
+        self._Binv_G = fn("Binv_G", list(s.theta + s.dtheta), d.B.inv() * d.G)
         limits = u_max if u_max is not None else [
             float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors]
         self.u_max = [float(v) for v in limits]
@@ -104,6 +109,33 @@ class Reference:
             y = J.solve(arb_mat(n, 1, out[n * n:]))
             return [sum((ball(self._W[i, j]) * y[j, 0] for j in range(n)), arb(0)) for i in range(n)]
 
+    def _solve_implicit(self, J: list, rhs: list, dt) -> list:
+        """y with (J + dt W) y = rhs, in balls (J row-major n^2, rhs n; the working precision set)."""
+        n, step = self.n, ball(dt)
+        A = arb_mat(n, n, [J[i * n + j] + step * ball(self._W[i, j]) for i in range(n) for j in range(n)])
+        y = A.solve(arb_mat(n, 1, list(rhs)))
+        return [y[i, 0] for i in range(n)]
+
+    def observer_implicit(self, theta, dtheta, z, u, dt) -> list[arb]:
+        """The backward-Euler step of eq. (21): z + dt W y, (J + dt W) y = G - B u - W theta' - z."""
+        n = self.n
+        with working_precision(self.prec):
+            out = self._observer(*theta, *dtheta, *z, *u)
+            y = self._solve_implicit(out[: n * n], out[n * n:], dt)
+            step = ball(dt)
+            return [ball(z[i]) + step * sum((ball(self._W[i, j]) * y[j] for j in range(n)), arb(0))
+                    for i in range(n)]
+
+    def npid_implicit(self, x, int_e, dt) -> list[arb]:
+        """u = u* + B^-1 W x_s, (J + dt W) x_s = J xi: eq. (34) with W_dt = W (J + dt W)^-1 J."""
+        n, d = self.n, self._d
+        with working_precision(self.prec):
+            ustar, xi, J = self._mpc(*x), self._xi(*x, *int_e), self._J(*x[:n])
+            Jxi = [sum((J[i * n + j] * xi[j] for j in range(n)), arb(0)) for i in range(n)]
+            xs = self._solve_implicit(J, Jxi, dt)
+            BW = d.B.inv() * d.W
+            return [ustar[i] + sum((ball(BW[i, j]) * xs[j] for j in range(n)), arb(0)) for i in range(n)]
+
     def dhat(self, x, z) -> list[arb]:
         """The estimate dhat = B^-1 (z + W theta') (eq. 22) at input x, state z."""
         n = self.n
@@ -111,6 +143,15 @@ class Reference:
 
     def dobc_init(self, x) -> list[arb]:
         return self._run(self._z0, x[: 4 * self.n])
+
+    def dobc_held(self, x) -> list[arb]:
+        """The implicit step's initial held voltage B^-1 (G - W theta' - z0) = B^-1 G - dhat(0)."""
+        n = self.n
+        with working_precision(self.prec):
+            z0, bg = self._z0(*x[: 4 * n]), self._Binv_G(*x[: 2 * n])
+            binv = [ball(1 / self._d.B[i, i]) for i in range(n)]
+            return [bg[i] - binv[i] * (z0[i] + sum((ball(self._W[i, j]) * x[n + j] for j in range(n)), arb(0)))
+                    for i in range(n)]
 
     def saturate(self, u) -> tuple[list, list[bool]]:
         out, hit = [], []
@@ -121,11 +162,13 @@ class Reference:
         return out, hit
 
     def npid_step(self, int_e, x, dt):
-        """(u, next int_e) of one NPID step (eq. 34), forward Euler, integrator held when limited."""
+        """(u, next int_e) of one NPID step (eq. 34), forward Euler, integrator held when limited;
+        the implicit observer's NPID law (W_dt) when the reference was made for it."""
         n = self.n
         with working_precision(self.prec):
             out = self._npid(*x, *int_e)
-            u, hit = self.saturate(out[:n])
+            raw = self.npid_implicit(x, int_e, dt) if self.implicit else out[:n]
+            u, hit = self.saturate(raw)
             step = ball(dt)
             return u, [ball(i) if h else ball(i) + step * ei for i, ei, h in zip(int_e, out[n:], hit)]
 
@@ -137,6 +180,16 @@ class Reference:
             zdot = self.observer(x[:n], x[n:2 * n], z, u)
             step = ball(dt)
             return u, [ball(zi) + step * r for zi, r in zip(z, zdot)]
+
+    def dobc_step_implicit(self, z, held, x, dt):
+        """(u, next z) of one implicit DOBC step: the backward-Euler observer step over the interval
+        that ended with the held voltage, then u = u* - B^-1 (z_next + W theta') limited (eq. 21, 22, 27);
+        the next held voltage is that u."""
+        n = self.n
+        with working_precision(self.prec):
+            z_next = self.observer_implicit(x[:n], x[n:2 * n], z, held, dt)
+            u, _ = self.saturate(self._dobc(*x, *z_next))
+            return u, z_next
 
     def mpc_step(self, x):
         return self.saturate(self.mpc(x))[0]

@@ -57,13 +57,18 @@ class Case:
     dobc_u: tuple[float, ...]
     dobc_next: tuple[float, ...]
     z0: tuple[float, ...]
+    held: tuple[float, ...] = ()   # the implicit step's held voltage (input), else empty
+    u0: tuple[float, ...] = ()     # the implicit step's initial held voltage (dobc_init), else empty
 
 
 OUTPUTS = ("gains", "mpc", "npid_u", "npid_next", "dobc_u", "dobc_next", "z0")   # the checked fields of a Case
 CHECKS = {"gains": "gains P, D, I", "mpc": "mpc_step u", "npid_u": "npid_step u", "npid_next": "npid_step int_e",
           "dobc_u": "dobc_step u", "dobc_next": "dobc_step z", "z0": "dobc_init z",
           "seq_npid_u": "npid sequence u", "seq_int_e": "npid sequence int_e", "seq_dobc_u": "dobc sequence u",
-          "seq_z": "dobc sequence z"}
+          "seq_z": "dobc sequence z", "u0": "dobc_init u"}
+IMPLICIT_RULE = ("outputs of the implicit observer step (dobc_step u and z, dobc_init u, the dobc sequence): "
+                 "norm-wise |got - want| <= 1e-12 max|want| in double, 16 (K + steps) 2^-24 max|want| in float "
+                 "(K operations; no derived bound for the two-vector state yet)")
 
 
 @dataclass(frozen=True)
@@ -105,7 +110,8 @@ def _floats(v) -> tuple[float, ...]:
 
 
 def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
-    """``count`` random cases (fixed seed) with reference outputs at dt = SEQUENCE_DT."""
+    """``count`` random cases (fixed seed) with reference outputs at dt = SEQUENCE_DT
+    (for the implicit observer step also a held voltage, drawn after the explicit inputs)."""
     rng = np.random.default_rng(seed)
     n = ref.n
     out = []
@@ -113,11 +119,16 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
         x = (_dyadic(rng, -3.0, 3.0, n) + _dyadic(rng, -3.0, 3.0, n) + _dyadic(rng, -3.0, 3.0, n)
              + _dyadic(rng, -2.0, 2.0, n) + _dyadic(rng, -5.0, 5.0, n))
         int_e, z = _dyadic(rng, -1.0, 1.0, n), _dyadic(rng, -1.0, 1.0, n)
+        held = _dyadic(rng, -1.0, 1.0, n) if ref.implicit else []
 
         def compute():
-            return (ref.gains(x[:n]), ref.mpc_step(x), *ref.npid_step(int_e, x, SEQUENCE_DT),
-                    *ref.dobc_step(z, x, SEQUENCE_DT), ref.dobc_init(x))
-        out.append(Case(tuple(x), tuple(int_e), tuple(z), *map(_floats, _proved(compute, ref))))
+            dobc = ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit else ref.dobc_step(z, x,
+                                                                                                   SEQUENCE_DT)
+            return (ref.gains(x[:n]), ref.mpc_step(x), *ref.npid_step(int_e, x, SEQUENCE_DT), *dobc,
+                    ref.dobc_init(x), *((ref.dobc_held(x),) if ref.implicit else ()))
+        got = list(map(_floats, _proved(compute, ref)))
+        u0 = got.pop() if ref.implicit else ()
+        out.append(Case(tuple(x), tuple(int_e), tuple(z), *got, held=tuple(held), u0=u0))
     return tuple(out)
 
 
@@ -136,6 +147,7 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
     def compute():
         int_e = [0] * n
         z = [v.mid() for v in ref.dobc_init(sequence_input(0, n))]
+        held = [v.mid() for v in ref.dobc_held(sequence_input(0, n))] if ref.implicit else None
         nu = du = None
         states = np.zeros((2, steps, n))
         radii = np.zeros((steps, 4, n))
@@ -143,14 +155,17 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
             x = sequence_input(k, n)
             states[0, k], states[1, k] = _floats(int_e), _floats(z)
             nu, int_e = ref.npid_step(int_e, x, SEQUENCE_DT)
-            du, z = ref.dobc_step(z, x, SEQUENCE_DT)
+            du, z = (ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit
+                     else ref.dobc_step(z, x, SEQUENCE_DT))
             if not all(certified(v) for v in (nu, int_e, du, z)):
                 return None
             radii[k] = [[to_float(v.rad()) for v in vec] for vec in (nu, int_e, du, z)]
             int_e, z = [v.mid() for v in int_e], [v.mid() for v in z]
+            held = [v.mid() for v in du] if ref.implicit else None
         out = SequenceVectors(*map(_floats, (nu, int_e, du, z)), states[0], states[1], radii)
-        for form, (iu, ist), (u, st) in (("npid", (0, 1), (out.npid_u, out.int_e)),
-                                          ("dobc", (2, 3), (out.dobc_u, out.z))):
+        checked = (("npid", (0, 1), (out.npid_u, out.int_e)),) + (
+            () if ref.implicit else (("dobc", (2, 3), (out.dobc_u, out.z)),))   # implicit dobc: IMPLICIT_RULE
+        for form, (iu, ist), (u, st) in checked:
             b_u, b_s = bounds.propagate(form, out.npid_states if form == "npid" else out.dobc_states,
                                         [sequence_input(k, n) for k in range(steps)], SEQUENCE_DT,
                                         radii[:, iu], radii[:, ist])
@@ -174,15 +189,29 @@ def _round_up(x: float) -> float:
     return float(math.ceil(x / 10.0 ** e) * 10.0 ** e) if e > -300 else x
 
 
+def rule_tolerance(values: Sequence[float], real: str, operations: int, steps: int = 0) -> tuple[float, ...]:
+    """IMPLICIT_RULE: DOUBLE_TOL (double) or float_bound(operations, steps) (float) times the
+    vector's largest magnitude, plus one underflow, for every element."""
+    rel = DOUBLE_TOL if real == "double" else float_bound(operations, steps)
+    scale = float(np.max(np.abs(values))) if len(values) else 0.0
+    return tuple(_round_up(rel * scale + TINY[real]) for _ in values)
+
+
 def case_tolerances(bounds: ApiBounds, cs: Sequence[Case], real: str) -> tuple[dict[str, tuple], ...]:
-    """Per case, the tolerance of every element of every checked output."""
+    """Per case, the tolerance of every element of every checked output (IMPLICIT_RULE for the
+    implicit observer step's outputs)."""
     n = bounds.n
     x = np.array([c.x for c in cs])
     npid = bounds.npid_step(np.array([c.int_e for c in cs]), x, SEQUENCE_DT)
-    dobc = bounds.dobc_step(np.array([c.z for c in cs]), x, SEQUENCE_DT)
     rows = {"gains": bounds.gains(x[:, :n]), "mpc": bounds.mpc_step(x), "npid_u": npid.u_bound,
-            "npid_next": npid.next_bound, "dobc_u": dobc.u_bound, "dobc_next": dobc.next_bound,
-            "z0": bounds.dobc_init(x)}
+            "npid_next": npid.next_bound, "z0": bounds.dobc_init(x)}
+    if bounds.implicit:
+        ops = bounds.operations("observer") + bounds.operations("dobc")
+        return tuple({**{f: tolerance(rows[f][k], getattr(c, f), real) for f in rows},
+                      **{f: rule_tolerance(getattr(c, f), real, ops) for f in ("dobc_u", "dobc_next", "u0")}}
+                     for k, c in enumerate(cs))
+    dobc = bounds.dobc_step(np.array([c.z for c in cs]), x, SEQUENCE_DT)
+    rows.update({"dobc_u": dobc.u_bound, "dobc_next": dobc.next_bound})
     return tuple({f: tolerance(rows[f][k], getattr(c, f), real) for f in OUTPUTS} for k, c in enumerate(cs))
 
 
@@ -191,14 +220,19 @@ def sequence_tolerances(bounds: ApiBounds, seq: SequenceVectors, real: str) -> d
     n, steps = bounds.n, len(seq.npid_states)
     xs = [sequence_input(k, n) for k in range(steps)]
     nu, ns, _ = bounds.sequence("npid", seq.npid_states, xs, SEQUENCE_DT)
+    out = {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real)}
+    if bounds.implicit:
+        ops = bounds.operations("observer") + bounds.operations("dobc")
+        return {**out, "seq_dobc_u": rule_tolerance(seq.dobc_u, real, ops, steps),
+                "seq_z": rule_tolerance(seq.z, real, ops, steps)}
     du, ds, _ = bounds.sequence("dobc", seq.dobc_states, xs, SEQUENCE_DT)
-    return {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real),
-            "seq_dobc_u": tolerance(du, seq.dobc_u, real), "seq_z": tolerance(ds, seq.z, real)}
+    return {**out, "seq_dobc_u": tolerance(du, seq.dobc_u, real), "seq_z": tolerance(ds, seq.z, real)}
 
 
 def accuracy(cs: Sequence[Case], tols: Sequence[dict], seq: SequenceVectors, seq_tols: dict) -> dict[str, float]:
     """Stated accuracy per output: the largest norm-wise relative tolerance over the vectors."""
-    out = {CHECKS[f]: max(relative(np.array(t[f]), getattr(c, f)) for c, t in zip(cs, tols)) for f in OUTPUTS}
+    fields = OUTPUTS + (("u0",) if cs and cs[0].u0 else ())
+    out = {CHECKS[f]: max(relative(np.array(t[f]), getattr(c, f)) for c, t in zip(cs, tols)) for f in fields}
     values = {"seq_npid_u": seq.npid_u, "seq_int_e": seq.int_e, "seq_dobc_u": seq.dobc_u, "seq_z": seq.z}
     out.update({CHECKS[f]: relative(np.array(seq_tols[f]), values[f]) for f in values})
     return out

@@ -74,6 +74,7 @@ class ArmView:
     k2: str
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
     sample_notes: tuple[str, ...] = ()          # the largest sample time of each form (derive generate)
+    implicit: bool = False                      # --observer implicit: the backward-Euler observer step
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -101,16 +102,17 @@ def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
                       operations=c.operations, unused=c.unused_inputs)
 
 
-def kernel_functions(d: Derivation, mode: ParamsMode) -> dict:
+def kernel_functions(d: Derivation, mode: ParamsMode, observer: str = "explicit") -> dict:
     """name -> CasADi Function of every kernel (built once, printed for each real type and language)."""
-    return {spec.name: to_function(spec) for spec in kernel_specs(d, mode)}
+    return {spec.name: to_function(spec) for spec in kernel_specs(d, mode, observer)}
 
 
 def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None = None,
-             sample_time: str | None = None) -> ArmView:
+             sample_time: str | None = None, observer: str = "explicit") -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
     the kernels' CasADi Functions from :func:`kernel_functions`, when at hand; ``sample_time``:
-    the sentence of derive.control.sampling.summary for the header, when the caller computed it).
+    the sentence of derive.control.sampling.summary for the header, when the caller computed it;
+    ``observer``: the observer step, derive.codegen.kernels.OBSERVER_STEPS).
 
     Raises SpecError naming the arm-file fields when a derived constant is not a normal
     ``real`` (derive.control.ranges; e.g. k1 = 3e40 of T2 = 1e-20 in float)."""
@@ -135,11 +137,13 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         py_params=tuple((name, py_literal(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
         mask=mask_type(d.n, arm.source),
-        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in kernel_specs(d, mode)),
+        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name))
+                      for k in kernel_specs(d, mode, observer)),
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
-                                                                         88)))
+                                                                         88)),
+        implicit=observer == "implicit")
 
 
 def observer_notes(d: Derivation) -> tuple[str, ...]:
@@ -204,8 +208,9 @@ def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
     from derive.codegen.reference import Reference
 
     mode = ParamsMode.RUNTIME if v.runtime else ParamsMode.BAKED
-    ref = Reference(d)
-    bounds = ApiBounds(d, v.real, mode)
+    observer = "implicit" if v.implicit else "explicit"
+    ref = Reference(d, observer=observer)
+    bounds = ApiBounds(d, v.real, mode, observer=observer)
     lit = lambda xs: tuple(c_literal(x, v.real) for x in xs)  # noqa: E731
     raw = tv.cases(ref, count)
     seq = tv.sequence(ref, bounds)
@@ -219,7 +224,8 @@ def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
     seq_fields = ("npid_u", "int_e", "dobc_u", "z")
     return SelftestView(
         rule=("element-wise |got - want| <= tol, tol = 2 x the first-order rounding bound of the generated "
-              "code at that point (derive.codegen.accuracy) + the rounding of want"),
+              "code at that point (derive.codegen.accuracy) + the rounding of want"
+              + (f"; {tv.IMPLICIT_RULE}" if v.implicit else "")),
         accuracy=tuple((name, f"{value:.2g}") for name, value in acc.items()),
         cases=cases, tols=tuple(_namespace("Tol", {f: lit(t[f]) for f in t}) for t in tols),
         seq=_namespace("Seq", {f: lit(getattr(seq, f)) for f in seq_fields}),

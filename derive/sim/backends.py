@@ -4,7 +4,8 @@ compiled C library through ctypes. Both are generated with runtime parameters
 
 Both backends expose the same small interface, :class:`Controller`:
 ``init(x)``, ``step(x, dt) -> u`` and ``state`` for one form ('mpc', 'npid' or
-'dobc'), with x = theta, theta', yd, yd', yd'' concatenated (5 n floats).
+'dobc'), with x = theta, theta', yd, yd', yd'' concatenated (5 n floats). ``observer``:
+the observer step the controller was generated with (derive generate --observer).
 """
 from __future__ import annotations
 
@@ -88,14 +89,14 @@ class PythonController:
 
 
 class CController:
-    def __init__(self, lib: ctypes.CDLL, arm: str, n: int, n_params: int, form: str, u_max):
+    def __init__(self, lib: ctypes.CDLL, arm: str, n: int, n_params: int, form: str, u_max, state_size: int):
         self.lib, self.arm, self.n, self.form = lib, arm, n, form
         real = ctypes.c_double
         self.params = (real * (n_params + n))()
         getattr(lib, f"{arm}_params_default")(self.params)
         for i, v in enumerate(u_max):
             self.params[n_params + i] = v
-        self.s = (real * n)()
+        self.s = (real * state_size)()   # the form's state struct: N reals (z and u: 2 N, implicit DOBC)
         self.u = (real * n)()
         self.x = (real * (5 * n))()
         self.dt = real
@@ -122,23 +123,23 @@ class CController:
 
     @property
     def state(self) -> list[float]:
-        return [] if self.form == "mpc" else list(self.s[:])
+        return [] if self.form == "mpc" else list(self.s[:self.n])
 
     @state.setter
     def state(self, values) -> None:
-        self.s[:] = [float(v) for v in values]
+        self.s[:self.n] = [float(v) for v in values]
 
 
 class Backend:
     """The generated controller of one derivation, built once in a temp folder."""
 
-    def __init__(self, d: Derivation, kind: str, arm_bytes: bytes = b""):
+    def __init__(self, d: Derivation, kind: str, arm_bytes: bytes = b"", observer: str = "explicit"):
         if kind not in ("python", "c"):
             raise DeriveError(f"--backend: expected python or c, got {kind!r}")
-        self.d, self.kind = d, kind
+        self.d, self.kind, self.observer = d, kind, observer
         self._tmp = tempfile.TemporaryDirectory(prefix="derive-sim-")
         root = Path(self._tmp.name) / d.arm.name
-        write_tree(root, generate_files(d, arm_bytes, "double", ParamsMode.RUNTIME))
+        write_tree(root, generate_files(d, arm_bytes, "double", ParamsMode.RUNTIME, observer=observer))
         name = d.arm.name
         if kind == "python":
             spec = importlib.util.spec_from_file_location(f"{name}_sim", root / "python" / f"{name}.py")
@@ -159,7 +160,8 @@ class Backend:
     def controller(self, form: str, u_max) -> Controller:
         if self.kind == "python":
             return PythonController(self.module, form, u_max)
-        return CController(self.lib, self.d.arm.name, self.d.n, len(self.d.values), form, u_max)
+        size = 2 * self.d.n if form == "dobc" and self.observer == "implicit" else self.d.n
+        return CController(self.lib, self.d.arm.name, self.d.n, len(self.d.values), form, u_max, size)
 
     def close(self) -> None:
         self._tmp.cleanup()

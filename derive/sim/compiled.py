@@ -53,17 +53,18 @@ class LoopBuild:
     limits: tuple[float, ...]        # the motors' voltage limits, 0 = none
     W: tuple[tuple[float, ...], ...]
     Binv: tuple[float, ...]
+    observer: str = "explicit"       # the controller's observer step (derive generate --observer)
 
 
-def loop_sources(d) -> dict[str, str]:
-    """The controller's C (double, runtime parameters) and the loop driver."""
+def loop_sources(d, observer: str = "explicit") -> dict[str, str]:
+    """The controller's C (double, runtime parameters, the observer step ``observer``) and the loop driver."""
     from derive.codegen.kernels import ParamsMode
     from derive.codegen.render import render
     from derive.codegen.views import arm_view
     from derive.sim.kernels import sim_kernels
 
     a = d.arm.name
-    v = arm_view(d, "double", ParamsMode.RUNTIME)
+    v = arm_view(d, "double", ParamsMode.RUNTIME, observer=observer)
     out = {f"{a}.h": render("c/arm.h.jinja", v=v), f"{a}.c": render("c/arm.c.jinja", v=v),
            f"{a}_kernels.h": render("c/kernels.h.jinja", v=v), f"{a}_kernels.c": render("c/kernels.c.jinja", v=v)}
     forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "")
@@ -86,9 +87,10 @@ def _compile(folder: Path, sources: dict[str, str], arm: str) -> Path:
     return so
 
 
-def build(d) -> LoopBuild:
-    """Render and compile the loop of derivation ``d`` (about a second for two joints)."""
-    sources = loop_sources(d)
+def build(d, observer: str = "explicit") -> LoopBuild:
+    """Render and compile the loop of derivation ``d`` with the controller's observer step
+    ``observer`` (derive.codegen.kernels.OBSERVER_STEPS; about a second for two joints)."""
+    sources = loop_sources(d, observer)
     key = hashlib.sha256("\0".join(f"{k}\0{v}" for k, v in sorted(sources.items())).encode()).hexdigest()
     with tempfile.TemporaryDirectory(prefix="derive-loop-") as tmp:
         library = _compile(Path(tmp), sources, d.arm.name).read_bytes()
@@ -96,7 +98,8 @@ def build(d) -> LoopBuild:
     return LoopBuild(key=key, arm=d.arm.name, n=d.n, sources=tuple(sorted(sources.items())), library=library,
                      forms=tuple(FORMS), ctl_values=tuple(float(v) for _, v in d.values),
                      limits=tuple(float(m.input_limit) if m.input_limit else 0.0 for m in d.arm.motors),
-                     W=tuple(map(tuple, W)), Binv=tuple(1.0 / np.array(d.B.tolist(), dtype=float).diagonal()))
+                     W=tuple(map(tuple, W)), Binv=tuple(1.0 / np.array(d.B.tolist(), dtype=float).diagonal()),
+                     observer=observer)
 
 
 _LOADED: dict[str, tuple[tempfile.TemporaryDirectory, ctypes.CDLL]] = {}

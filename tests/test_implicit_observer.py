@@ -187,3 +187,29 @@ def test_python_stepped_implicit_controllers_equal_the_compiled_loop(paper, loop
         assert c.failure is None and p.failure is None and len(c.t) == len(p.t) > 100
         np.testing.assert_allclose(c.theta, p.theta, rtol=0, atol=1e-9, err_msg=name)
         np.testing.assert_allclose(c.u, p.u, rtol=1e-9, atol=1e-9, err_msg=name)
+
+
+def test_generated_python_implicit_dobc_step_reports_clipped_joints_and_holds_the_clipped_u(paper, tmp_path):
+    """The implicit dobc_step in main's step style: (code, u, clipped) with the clipped joints' bitmask,
+    the state keeps the clipped u (the voltage held over the next interval), and a state.u of the
+    wrong shape is refused naming the field."""
+    from derive.codegen.emit import write_tree
+
+    _, d = paper
+    write_tree(tmp_path / d.arm.name, generate_files(d, None, "double", ParamsMode.RUNTIME, observer="implicit"))
+    m = _module(tmp_path / d.arm.name / "python" / f"{d.arm.name}.py")
+    p, s = m.Params(), m.DobcState()
+    inp = m.Input([0.3, -0.2], [0.5, 0.25], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
+    assert m.dobc_init(p, s, inp) == m.OK
+    z, held = list(s.z), list(s.u)
+    code, free, clipped = m.dobc_step(p, s, inp, 0.01)
+    assert code == m.OK and clipped == 0
+    p.u_max = [abs(free[0]) / 2, 0.0]
+    s.z, s.u = z, held
+    code, u, clipped = m.dobc_step(p, s, inp, 0.01)
+    assert code == m.OK and clipped == 1
+    assert u[0] == pytest.approx(np.sign(free[0]) * abs(free[0]) / 2, rel=1e-15) and u[1] == pytest.approx(free[1])
+    assert list(s.u) == list(u)
+    s.u = [0.0]
+    with pytest.raises(ValueError, match=r"state\.u: expected shape \(2,\), got shape \(1,\)"):
+        m.dobc_step(p, s, inp, 0.01)

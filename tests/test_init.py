@@ -33,6 +33,7 @@ def test_init_writes_an_arm_file_that_loads(tmp_path, capsys):
     assert "# viscous_friction = 0.05" in text            # <dynamics damping="0.05">, used as the default
     assert [p.value for p in arm.parameters if p.symbol.name.startswith("bv")] == [Fraction(1, 20)] * 2
     assert "position [0, 0] rad" in text                 # the URDF's limits, as comments
+    assert "nondecreasing" not in text and "derive check certifies them" in text   # no ordering of w is imposed
     assert "derive generate" in capsys.readouterr().err
 
 

@@ -144,7 +144,8 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "T1 = 0.0                        # s, minimum prediction time (eq. 14)",
         f"T2 = {T2_DEFAULT}                        # s, assumption: maximum prediction time (eq. 14); "
         "shorter is stiffer",
-        f"w = [{w}]  # 1/s, assumption: observer gains (eq. 25), nondecreasing",
+        f"w = [{w}]  # 1/s, assumption: observer gains (eq. 25); derive check certifies them on "
+        "max_joint_speed, in any order; w = \"auto\" chooses them",
         "",
     ]
     return "\n".join(lines)

@@ -224,10 +224,10 @@ def _inv_rpy(R: np.ndarray) -> tuple[float, float, float]:
     return (math.atan2(R[2, 1], R[2, 2]), -math.asin(R[2, 0]), math.atan2(R[1, 0], R[0, 0]))
 
 
-def test_inserted_massless_fixed_links_leave_the_bodies_unchanged(tmp_path):
-    """Between every pair of joints of a 3-joint chain, a massless link on a fixed joint with an
-    arbitrary rpy and offset, the next joint's origin expressed from it: the bodies (in the moving
-    joints' frames) are unchanged exactly and J, G agree to 1e-12."""
+def plain_and_inserted(rng: np.random.Generator) -> tuple[str, str]:
+    """A 3-joint chain (revolute x, revolute y, prismatic x; bodies with products of inertia) and
+    the same chain with a massless link on a fixed joint of random rpy and offset before every
+    joint, the next joint's origin expressed from it: two URDFs of one arm, base a, tip e."""
     I1, I2, I3 = (0.02, 0.001, 0, 0.03, 0.002, 0.025), (0.01, 0, 0.001, 0.012, 0, 0.009), (1e-3, 0, 0, 2e-3, 0, 2e-3)
     bodies = (link("a") + link("b", 2.0, "0.1 0 0.05", "0.1 0 0", I1) + link("c", 1.0, "0.2 0.01 0", "0 0 0.3", I2)
               + link("e", 0.5, "0 0 0.1", inertia=I3))
@@ -235,7 +235,6 @@ def test_inserted_massless_fixed_links_leave_the_bodies_unchanged(tmp_path):
     plain = robot(bodies + joint("j1", "a", "b", xyz=origins[0][0], rpy_=origins[0][1])
                   + joint("j2", "b", "c", xyz=origins[1][0], rpy_=origins[1][1], axis="0 1 0")
                   + joint("j3", "c", "e", "prismatic", origins[2][0], origins[2][1], axis="1 0 0"))
-    rng = np.random.default_rng(3)
     inserted, parents = "", {"j1": "a", "j2": "b", "j3": "c"}
     for k, name in enumerate(("j1", "j2", "j3")):
         angles, offset = rng.uniform(-1, 1, 3), rng.uniform(-0.2, 0.2, 3)
@@ -254,6 +253,15 @@ def test_inserted_massless_fixed_links_leave_the_bodies_unchanged(tmp_path):
     busy = robot(bodies + inserted + joint("j1", parents["j1"], "b", xyz=origins[0][0], rpy_=origins[0][1])
                  + joint("j2", parents["j2"], "c", xyz=origins[1][0], rpy_=origins[1][1], axis="0 1 0")
                  + joint("j3", parents["j3"], "e", "prismatic", origins[2][0], origins[2][1], axis="1 0 0"))
+    return plain, busy
+
+
+def test_inserted_massless_fixed_links_leave_the_bodies_unchanged(tmp_path):
+    """Between every pair of joints of a 3-joint chain, a massless link on a fixed joint with an
+    arbitrary rpy and offset, the next joint's origin expressed from it: the bodies (in the moving
+    joints' frames) are unchanged exactly and J, G agree to 1e-12."""
+    rng = np.random.default_rng(3)
+    plain, busy = plain_and_inserted(rng)
     a = load(write(tmp_path, plain, "plain.urdf"), "a", "e").chain
     b = load(write(tmp_path, busy, "busy.urdf"), "a", "e").chain
     assert a.bodies == b.bodies and [p.value for p in a.parameters] == [p.value for p in b.parameters]

@@ -221,3 +221,20 @@ def test_dh_spatial_arm_derives_and_equals_the_euler_lagrange_reference() -> Non
     d = derive.derive(arm_from_dict(data))
     assert d.n == 3 and d.lumped is None and d.npid.P.shape == (3, 3)
     assert reference_mismatch(d.dynamics, numeric=True) is None
+
+
+def test_inserted_massless_fixed_links_leave_the_derived_dynamics_unchanged(tmp_path) -> None:
+    """Issue 11's invariance on the derived dynamics (eq. 12), not only on the chain: a massless
+    link on a fixed joint of random rpy and offset before every joint leaves J, the bias and g
+    unchanged at random states (1e-12)."""
+    from .test_model_urdf import plain_and_inserted
+
+    rng = np.random.default_rng(5)
+    plain, busy = plain_and_inserted(rng)
+    fa = casadi_function(derive_dynamics(urdf_arm(write(tmp_path, plain, "plain.urdf"), "a", "e", 3, "plain")))
+    fb = casadi_function(derive_dynamics(urdf_arm(write(tmp_path, busy, "busy.urdf"), "a", "e", 3, "busy")))
+    for _ in range(10):
+        q, v = rng.uniform(-2, 2, 3), rng.uniform(-3, 3, 3)
+        a, b = fa(q, v), fb(q, v)
+        for k in (0, 1, 3):   # J, bias, g
+            assert np.max(np.abs(np.array(a[k]) - np.array(b[k]))) <= 1e-12, k

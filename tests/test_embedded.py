@@ -104,3 +104,21 @@ def test_measurement_parser():
     assert problem == "" and stack == (176, 620)
     assert insns["gains"] == pytest.approx(((4900 * 40.001 / 256 + 5000 * 40.001 / 256) / 2, 5000 * 40.001 / 256))
     assert embedded.parse_measure(text.replace("measure done codes=0", ""))[2].startswith("measurement incomplete")
+
+
+def test_ur5_controller_passes_its_selftest_on_the_cortex_m4f():
+    """Issue 11: a 6-joint spatial arm from a URDF cross-compiled for the Cortex-M4F (float) and
+    its self-test run on QEMU, with its figures in the report (no writable globals)."""
+    proc = subprocess.run([sys.executable, "-m", "derive", "embedded", str(ROOT / "tests" / "data" / "urdf" / "ur5.toml"),
+                           "--target", "m4f"], cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          stdin=subprocess.DEVNULL)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = ROW.findall(proc.stdout)
+    assert [(core, real) for core, _m, real, *_ in rows] == [("Cortex-M4F", "float")], proc.stdout
+    _core, _machine, _real, passed, failed, rest = rows[0]
+    assert int(passed) >= 50 and int(failed) == 0
+    cells = [c.strip() for c in rest.rstrip(" |").split("|")]
+    assert int(cells[1]) == 0   # RAM: no writable globals
+    npid_mean, npid_peak = (int(v) for v in cells[6].split(" / "))
+    assert 0 < npid_mean <= npid_peak
+    assert "Arm `ur5`" in proc.stdout

@@ -103,3 +103,16 @@ def test_generated_c_fuzz_driver_under_valgrind(generated, tmp_path) -> None:
                            str(exe), str(iterations)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
     _fuzz_passed(proc.stdout, iterations)
+
+
+def test_ur5_with_runtime_parameters_passes_its_selftest(tmp_path) -> None:
+    """Issue 11 item 4: body parameters keep --params runtime working on a spatial arm; the
+    parameters are read at run time (the header declares the parameter struct)."""
+    d = derive.derive(load_arm(URDF / "ur5.toml"))
+    write_tree(tmp_path / "ur5", generate_files(d, b"", "double", ParamsMode.RUNTIME))
+    c = tmp_path / "ur5" / "c"
+    assert "ur5_params" in (c / "ur5.h").read_text()
+    exe = compile_c("gcc", [c / "ur5_selftest.c", *library_sources(c, "ur5")], tmp_path / "st", ["-O2"])
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert re.search(r"^(\d+) passed, 0 failed$", proc.stdout, re.M), proc.stdout[-3000:]

@@ -56,3 +56,28 @@ def test_walks_visit_each_distinct_subexpression_once_on_an_8_link_chain(monkeyp
     visits.clear()
     J = dag.jacobian(dyn.G, dyn.sym.dtheta[:1])
     assert 0 < len(visits) < 2000 and J.shape == (8, 1)
+
+
+def test_values_put_in_keep_each_sum_shared_same_values_fewer_operations():
+    """A parameter's value in front of a shared sum (a body's mass times its
+    acceleration) multiplies the sum instead of being distributed over its
+    terms: the Derivation's numeric J and bias have the values of SymPy's
+    xreplace at a state, and far fewer operations after CSE (the Panda's bias:
+    about 1,650 distributed, about 1,000 kept)."""
+    from pathlib import Path
+
+    from derive.dynamics.identities import count_ops_cse
+    from derive.model.spec import load_arm
+    dyn = derive_dynamics(load_arm(Path(__file__).parent / "data" / "urdf" / "panda.toml"))
+    rule = dict(dyn.values)
+    kept = dag.Substitution(rule, keep_sums=True)(dyn.bias)
+    spread = dag.Substitution(rule)(dyn.bias)
+    assert count_ops_cse(list(kept)) < 0.7 * count_ops_cse(list(spread))
+    s = dyn.sym
+    point = {x: sp.Float(0.1 * (k % 5) - 0.2, 30) for k, x in enumerate(s.theta + s.dtheta)}
+    a = dag.Substitution(point)(kept)
+    b = dag.Substitution(point)(spread)
+    assert max(abs(x - y) for x, y in zip(a, b)) < 1e-20
+    two = sp.Symbol("m") * (sp.Symbol("x") + sp.Symbol("y"))
+    assert dag.xreplace(two, {sp.Symbol("m"): sp.Rational(3, 2)}, keep_sums=True).is_Mul
+    assert dag.xreplace(two, {sp.Symbol("m"): sp.Rational(3, 2)}).is_Add

@@ -81,13 +81,13 @@ class Derivation:
 
     @cached_property
     def _put_values(self) -> Substitution:
-        return Substitution(dict(self.values))
+        return Substitution(dict(self.values), keep_sums=True)
 
     @cached_property
     def _put_measurements(self) -> Substitution:
         s = self.dynamics.sym
         e, de = self.tracking_error
-        return Substitution({**dict(zip(s.e, e)), **dict(zip(s.de, de)),
+        return Substitution(keep_sums=True, rule={**dict(zip(s.e, e)), **dict(zip(s.de, de)),
                              **dict(zip(s.e0, e)), **dict(zip(s.de0, de))})
 
     def numeric(self, expr):
@@ -126,7 +126,7 @@ def derive(arm: Arm) -> Derivation:
     npid = derive_npid(dyn, mpc, obs)
     values = dyn.values + mpc.values + obs.values
     rep = dict(values)
-    num = Substitution(rep)  # one memo for every matrix: they share J's and G's subexpressions
+    num = Substitution(rep, keep_sums=True)  # one memo for every matrix: they share J's and G's subexpressions
 
     lumped = bound = None
     if arm.n == 2 and dyn.chain.planar:   # the paper's lumped form (a6) is a planar 2-link one

@@ -48,7 +48,7 @@ def test_uniform_rod_and_default_com_are_expressions_not_parameters():
     names = [p.symbol.name for p in arm.parameters]
     assert not any(n.startswith(("c", "Ic")) for n in names), names
     assert names[:6] == ["l1", "l2", "l3", "m1", "m2", "m3"]
-    assert names[-5:] == ["T1", "T2", "w1", "w2", "w3"]
+    assert names[-8:] == ["T1", "T2", "w1", "w2", "w3", "kr1", "kr2", "kr3"]   # kr: the momentum observer's K
     by = {p.symbol.name: p for p in arm.parameters}
     assert (by["m3"].field, by["m3"].unit, str(by["m3"].value)) == ("link[3].mass", "kg", "3/10")
     m3, l3, mp3, rp3, Ip3 = (by[k].symbol for k in ("m3", "l3", "mp3", "rp3", "Ip3"))

@@ -67,7 +67,9 @@ def test_generated_python_module_computes_what_the_old_one_did() -> None:
     module = load_module(str(ROOT / "generated" / "glasgow_2link" / "python" / "glasgow_2link.py"))
     got = kernels(module)
     want = REFERENCE["generated_glasgow_2link"]
-    assert sorted(got) == sorted(want)
+    # the generalized-momentum observer's kernels (issue 12 item 6) came after the old path
+    assert sorted(set(got) - set(want)) == ["_kernel_mom", "_kernel_mom_init", "_kernel_mom_next"]
+    assert set(want) <= set(got)
     for name in want:
         for a, b in zip(got[name], want[name]):
             scale = max(1.0, max(abs(x) for x in b))

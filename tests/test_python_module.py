@@ -84,7 +84,10 @@ def _calls(m, **inp_fields):
             "npid_step": lambda: m.npid_step(*p, m.NpidState(), inp, 1e-3),
             "dobc_init": lambda: m.dobc_init(*p, m.DobcState(), inp),
             "dobc_step": lambda: m.dobc_step(*p, m.DobcState(), inp, 1e-3),
-            "dobc_estimate": lambda: m.dobc_estimate(*p, m.DobcState(), inp)}
+            "dobc_estimate": lambda: m.dobc_estimate(*p, m.DobcState(), inp),
+            "mom_init": lambda: m.mom_init(*p, m.MomState(), inp),   # the momentum observer (issue 12 item 6)
+            "mom_step": lambda: m.mom_step(*p, m.MomState(), inp, 1e-3),
+            "mom_estimate": lambda: m.mom_estimate(*p, m.MomState(), inp)}
 
 
 @pytest.mark.parametrize("bad,error,got", BAD_VECTORS, ids=[repr(b)[:24] for b, _, _ in BAD_VECTORS])
@@ -101,7 +104,9 @@ def test_every_function_names_every_bad_vector(module, bad, error, got):
     for name, state, field, call in (
             ("npid_step", m.NpidState(), "int_e", lambda s: m.npid_step(*p, s, _input(m), 1e-3)),
             ("dobc_step", m.DobcState(), "z", lambda s: m.dobc_step(*p, s, _input(m), 1e-3)),
-            ("dobc_estimate", m.DobcState(), "z", lambda s: m.dobc_estimate(*p, s, _input(m)))):
+            ("dobc_estimate", m.DobcState(), "z", lambda s: m.dobc_estimate(*p, s, _input(m))),
+            ("mom_step", m.MomState(), "m", lambda s: m.mom_step(*p, s, _input(m), 1e-3)),
+            ("mom_estimate", m.MomState(), "m", lambda s: m.mom_estimate(*p, s, _input(m)))):
         setattr(state, field, bad)
         with pytest.raises(error, match=rf"^state\.{field}: expected .*shape \(2,\).*{got}$"):
             call(state)
@@ -122,10 +127,14 @@ def test_dt_state_and_input_of_the_wrong_kind_are_type_errors(module):
             m.npid_step(*p, m.NpidState(), _input(m), dt)
         with pytest.raises(TypeError, match=r"^dt: expected a real number"):
             m.dobc_step(*p, m.DobcState(), _input(m), dt)
+        with pytest.raises(TypeError, match=r"^dt: expected a real number"):
+            m.mom_step(*p, m.MomState(), _input(m), dt)
     with pytest.raises(TypeError, match=r"^state: expected a NpidState \(with \.int_e\), got DobcState$"):
         m.npid_step(*p, m.DobcState(), _input(m), 1e-3)
     with pytest.raises(TypeError, match=r"^state: expected a DobcState \(with \.z\), got NpidState$"):
         m.dobc_init(*p, m.NpidState(), _input(m))
+    with pytest.raises(TypeError, match=r"^state: expected a MomState \(with \.m\), got DobcState$"):
+        m.mom_step(*p, m.DobcState(), _input(m), 1e-3)
     with pytest.raises(TypeError, match=r"^inp: expected an Input \(theta, dtheta, yd, dyd, ddyd\), got list$"):
         m.mpc_step(*p, [[0.1, 0.2]] * 5)
 

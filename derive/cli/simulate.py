@@ -9,7 +9,7 @@ from pathlib import Path
 
 from derive import jsonio
 from derive.errors import DeriveError
-from derive.sim.simulate import VARIANTS
+from derive.sim.simulate import CONTROLLERS, VARIANTS
 
 
 def add_arguments(parser) -> None:
@@ -18,8 +18,9 @@ def add_arguments(parser) -> None:
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
-    parser.add_argument("--controllers", default="mpc,dobc,npid",
-                        help=f"comma-separated, of {', '.join(VARIANTS)} (default mpc,dobc,npid)")
+    parser.add_argument("--controllers", default=",".join(CONTROLLERS),
+                        help=f"comma-separated, of {', '.join(VARIANTS)} (default {','.join(CONTROLLERS)}: "
+                             "mom is the generalized-momentum observer)")
     parser.add_argument("--backend", choices=("compiled", "python", "c"), default="compiled",
                         help="compiled: the whole closed loop in C (default); python, c: the Python-stepped "
                              "reference with the generated Python module or C library as controller")

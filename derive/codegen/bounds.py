@@ -6,7 +6,7 @@ Python module) and as :class:`derive.codegen.reference.Reference` replicates
 it: a voltage limit clips u (a 1-Lipschitz map, so the unclipped bound still
 holds near the limit), holds the integrator, and the observer is fed the
 applied u. A state carried from step to step (the integral of e, the
-observer state z) enters with an error bound b, propagated through the exact
+observer state z, the momentum observer's m) enters with an error bound b, propagated through the exact
 Jacobian A of the step in the state: b_next = |A| b + l, l the step's own
 rounding bound (Higham, sec. 3.3, applied per step).
 
@@ -69,7 +69,7 @@ class ApiBounds:
             t = Tape()
             x = t.leaf("x", 5 * n)
             ports = {name: x[k * n:(k + 1) * n] for k, name in enumerate(_X)}
-            ports["int_e"] = ports["z"] = t.leaf("s", n)
+            ports["int_e"] = ports["z"] = ports["m"] = t.leaf("s", n)
             ports["dt"] = t.leaf("dt", 1)
             ports["p"] = [t.constant(v) for v in params]
             return t, ports
@@ -79,17 +79,21 @@ class ApiBounds:
 
         self._entries: dict[str, _Entry] = {}
         self._last: dict = {}
-        for name in ("gains", "mpc", "dobc_init", "npid"):
+        for name in ("gains", "mpc", "dobc_init", "npid", "mom_init"):
             t, ports = start()
             outs = call(t, name, ports)
             self._entries[name] = _Entry(t, tuple(v for o in outs for v in o), tuple(ports["z"]),
                                          tuple(len(o) for o in outs))
-        t, ports = start()
-        (u,) = call(t, "dobc", ports)
-        keep, clip = t.leaf("keep", n, kind=None), t.leaf("clip", n, kind=CONST)
-        applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
-        (z_next,) = call(t, "observer", {**ports, "u": applied})
-        self._entries["dobc"] = _Entry(t, (*u, *z_next), tuple(ports["z"]), (n, n))
+        t, ports = start()   # mom_estimate: the second output of the mom kernel
+        (_, dhat) = call(t, "mom", ports)
+        self._entries["mom_dhat"] = _Entry(t, tuple(dhat), tuple(ports["z"]), (n,))
+        for form, law, step in (("dobc", "dobc", "observer"), ("mom", "mom", "mom_next")):
+            t, ports = start()   # the law, the limits (a select), then the state's step fed the applied u
+            u = call(t, law, ports)[0]
+            keep, clip = t.leaf("keep", n, kind=None), t.leaf("clip", n, kind=CONST)
+            applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
+            (s_next,) = call(t, step, {**ports, "u": applied})
+            self._entries[form] = _Entry(t, (*u, *s_next), tuple(ports["z"]), (n, n))
 
     def operations(self, name: str) -> int:
         """The size (CasADi nodes) of kernel ``name``: K of the coarse float rule."""
@@ -102,7 +106,7 @@ class ApiBounds:
         K = x.shape[0]
         inputs = {"x": x.T, "s": (np.zeros((K, n)) if s is None else np.atleast_2d(np.asarray(s, float))).T,
                   "dt": np.full((1, K), float(dt))}
-        if name == "dobc":
+        if name in ("dobc", "mom"):
             inputs["keep"] = (np.ones((K, n)) if keep is None else keep).T
             inputs["clip"] = (np.zeros((K, n)) if clip is None else clip).T
         if name == "gains":
@@ -121,6 +125,14 @@ class ApiBounds:
     def dobc_init(self, x) -> np.ndarray:
         """Bounds on z(0), (K, n)."""
         return self._eval("dobc_init", x)[0][1]
+
+    def mom_init(self, x) -> np.ndarray:
+        """Bounds on the momentum observer's m(0) = J theta', (K, n)."""
+        return self._eval("mom_init", x)[0][1]
+
+    def mom_estimate(self, m, x) -> np.ndarray:
+        """Bounds on dhat = B^-1 K (J theta' - m) from exact states m (K, n), (K, n)."""
+        return self._eval("mom_dhat", x, m)[0][1]
 
     def _clip(self, u_raw: np.ndarray, b_raw: np.ndarray):
         """(applied u, its bound, limited, near a limit) for the voltage limits."""
@@ -153,8 +165,8 @@ class ApiBounds:
         limited = (self.u_max > 0) & (np.abs(u_raw) > self.u_max)
         ev = {"state": states, "x": xs, "dt": dt, "u_raw": u_raw, "l_raw": l_raw, "A_raw": A_raw,
               "next": nxt, "l_next": l_next, "A_next": A_next, "limited": limited}
-        if form == "dobc" and limited.any():  # the observer is fed the limited u
-            (_, _, _), (nxt, l_next, A_next) = self._eval("dobc", xs, states, dt, (~limited).astype(float),
+        if form in ("dobc", "mom") and limited.any():  # the observer is fed the limited u
+            (_, _, _), (nxt, l_next, A_next) = self._eval(form, xs, states, dt, (~limited).astype(float),
                                                           np.sign(u_raw) * self.u_max)
             ev.update({"next": nxt, "l_next": l_next, "A_next": A_next})
         return ev
@@ -174,7 +186,7 @@ class ApiBounds:
             for row in np.flatnonzero(near.any(axis=1)):  # the other decision at the rows in doubt
                 keep = ev["limited"][k][row] == near[row]
                 clip = np.sign(u_raw[row]) * self.u_max
-                (_, _, _), (alt, l_alt, A_alt) = self._eval("dobc", ev["x"][k][row], state[row], ev["dt"],
+                (_, _, _), (alt, l_alt, A_alt) = self._eval(form, ev["x"][k][row], state[row], ev["dt"],
                                                             keep[None, :].astype(float), clip[None, :])
                 b_alt = np.abs(A_alt[0]) @ b[row] + l_alt[0]
                 b_next[row] = np.maximum(b_step[row], b_alt) + np.abs(alt[0] - nxt[row])
@@ -191,6 +203,12 @@ class ApiBounds:
         ev = self._steps("dobc", z, x, dt)
         b = np.zeros_like(ev["u_raw"]) if b_state is None else np.atleast_2d(b_state)
         return self._combine("dobc", ev, slice(None), b)
+
+    def mom_step(self, m, x, dt, b_state=None) -> StepBounds:
+        """Momentum-observer steps from m (K, n), whose error is bounded by ``b_state`` (default exact)."""
+        ev = self._steps("mom", m, x, dt)
+        b = np.zeros_like(ev["u_raw"]) if b_state is None else np.atleast_2d(b_state)
+        return self._combine("mom", ev, slice(None), b)
 
     def sequence(self, form: str, states, xs, dt) -> tuple[np.ndarray, np.ndarray, bool]:
         """Bounds on the last u and on the final state after the steps of

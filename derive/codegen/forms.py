@@ -38,6 +38,7 @@ class Form:
     equations: str    # the paper's equations, e.g. "eq. 34-38"
     state: FormState | None
     estimate: bool    # has <arm>_<name>_estimate (dhat, eq. 22)
+    estimate_law: str = ""   # what that estimate is, plain ASCII (forms with an estimate)
 
 
 FORMS: dict[str, Form] = {f.name: f for f in (
@@ -45,9 +46,14 @@ FORMS: dict[str, Form] = {f.name: f for f in (
          FormState("npid_state", "int_e", "integral of the tracking error e = yd - C theta [rad s]"),
          estimate=False),
     Form("dobc", "disturbance-observer-based controller", "u = u* - dhat, dhat = B^-1 (z + W theta')",
-         "eq. 21-27", FormState("dobc_state", "z", "observer state z (eq. 21)"), estimate=True),
+         "eq. 21-27", FormState("dobc_state", "z", "observer state z (eq. 21)"), estimate=True,
+         estimate_law="dhat = B^-1 (z + W theta') (eq. 22)"),
     Form("mpc", "nonlinear predictive controller", "u = u* (no disturbance estimate)", "eq. 15",
          None, estimate=False),
+    Form("mom", "generalized-momentum observer with the predictive law",
+         "u = u* - dhat, dhat = B^-1 K (J theta' - m)", "eq. 15, 27; derive.control.momentum",
+         FormState("mom_state", "m", "momentum observer state m: r = K (J theta' - m)"), estimate=True,
+         estimate_law="dhat = B^-1 r, r = K (J theta' - m) (the generalized-momentum observer: r' = K (B d - r))"),
 )}
 DEFAULT_FORM = "npid"
 

@@ -184,4 +184,33 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         KernelSpec("dhat", (dtheta, z, *params), (
             Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
             "Disturbance estimate of the observer state (eq. 22)"),
+        *momentum_specs(d, mode, x, dt, params),
+    )
+
+
+def momentum_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], dt: Port,
+                   params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
+    """The generalized-momentum observer's kernels (derive.control.momentum), form mom:
+    mom(x, m) -> u = u* - B^-1 r, r = K (J theta' - m) (eq. 27 with its estimate), and that
+    estimate dhat = B^-1 r (one kernel for mom_step and mom_estimate: the M4F's 4 KB of flash);
+    mom_next(theta, theta', m, u, dt) -> m + dt (B u + C^T theta' - g - F theta' + r) (forward
+    Euler of m'); mom_init(theta, theta') -> m(0) = J theta' (so r(0) = 0)."""
+    mom = d.momentum
+    value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
+    s = d.dynamics.sym
+    theta, dtheta = x[0], x[1]
+    m = Port("m", mom.m, "momentum observer state: the integral m of derive.control.momentum")
+    return (
+        KernelSpec("mom", (*x, m, *params), (
+            Port("u", _flat(d.measured(value(d.mpc.u_star)) - value(mom.dhat)),
+                 "u* - B^-1 r, r = K (J theta' - m): eq. 27 with the momentum estimate"),
+            Port("dhat", _flat(value(mom.dhat)), "dhat = B^-1 K (J theta' - m)")),
+            "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat"),
+        KernelSpec("mom_next", (theta, dtheta, m, Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("m_next", _flat(sp.Matrix(mom.m) + dt.items[0] * value(mom.m_rate)),
+                 "m + dt (B u + C^T theta' - g - F theta' + K (J theta' - m))"),),
+            "Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r"),
+        KernelSpec("mom_init", (theta, dtheta, *params), (
+            Port("m0", _flat(value(mom.p)), "m(0) = J(theta0) theta0': r(0) = 0"),),
+            "Momentum observer state at the first sample: the generalized momentum J theta'"),
     )

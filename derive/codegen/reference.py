@@ -75,6 +75,11 @@ class Reference:
         self._J = fn("J", list(s.theta), d.J)
         self._xi = fn("xi", x + list(s.int_e), d.numeric(d.npid.xi))   # u_npid = u* + B^-1 W xi
         self._Binv_G = fn("Binv_G", list(s.theta + s.dtheta), d.B.inv() * d.G)
+        mom = d.momentum   # the generalized-momentum observer (derive.control.momentum)
+        self._mom = fn("mom", x + list(mom.m), d.u_mom)
+        self._mom_rate = fn("mom_rate", list(s.theta + s.dtheta) + list(mom.m) + list(s.u), d.numeric(mom.m_rate))
+        self._mom_init = fn("mom_init", list(s.theta + s.dtheta), d.numeric(mom.p))
+        self._mom_dhat = fn("mom_dhat", list(s.theta + s.dtheta) + list(mom.m), d.numeric(mom.dhat))
         limits = u_max if u_max is not None else [
             float(m.input_limit) if m.input_limit is not None else 0.0 for m in d.arm.motors]
         self.u_max = [float(v) for v in limits]
@@ -190,6 +195,24 @@ class Reference:
             z_next = self.observer_implicit(x[:n], x[n:2 * n], z, held, dt)
             u, _ = self.saturate(self._dobc(*x, *z_next))
             return u, z_next
+
+    def mom_init(self, x) -> list[arb]:
+        """m(0) = J(theta) theta' (derive.control.momentum)."""
+        return self._run(self._mom_init, x[: 2 * self.n])
+
+    def mom_dhat(self, x, m) -> list[arb]:
+        """dhat = B^-1 K (J theta' - m) at input x, state m."""
+        return self._run(self._mom_dhat, x[: 2 * self.n], m)
+
+    def mom_step(self, m, x, dt):
+        """(u, next m) of one momentum-observer step: u = u* - B^-1 K (J theta' - m) limited, then
+        m + dt (B u + C^T theta' - g - F theta' + r) with the applied u (forward Euler)."""
+        n = self.n
+        with working_precision(self.prec):
+            u, _ = self.saturate(self._mom(*x, *m))
+            rate = self._mom_rate(*x[: 2 * n], *m, *u)
+            step = ball(dt)
+            return u, [ball(mi) + step * ri for mi, ri in zip(m, rate)]
 
     def mpc_step(self, x):
         return self.saturate(self.mpc(x))[0]

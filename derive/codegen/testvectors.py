@@ -57,13 +57,21 @@ class Case:
     dobc_u: tuple[float, ...]
     dobc_next: tuple[float, ...]
     z0: tuple[float, ...]
+    m: tuple[float, ...]           # the momentum observer's state (input of mom_step, mom_estimate)
+    mom0: tuple[float, ...]        # mom_init m = J theta'
+    mom_u: tuple[float, ...]
+    mom_next: tuple[float, ...]
+    mom_dhat: tuple[float, ...]    # mom_estimate at m
     held: tuple[float, ...] = ()   # the implicit step's held voltage (input), else empty
     u0: tuple[float, ...] = ()     # the implicit step's initial held voltage (dobc_init), else empty
 
 
-OUTPUTS = ("gains", "mpc", "npid_u", "npid_next", "dobc_u", "dobc_next", "z0")   # the checked fields of a Case
+OUTPUTS = ("gains", "mpc", "npid_u", "npid_next", "dobc_u", "dobc_next", "z0", "mom0", "mom_u", "mom_next",
+           "mom_dhat")   # the checked fields of a Case
+MOM = ("mom0", "mom_u", "mom_next", "mom_dhat")   # the momentum observer's (the same step in both builds)
 CHECKS = {"gains": "gains P, D, I", "mpc": "mpc_step u", "npid_u": "npid_step u", "npid_next": "npid_step int_e",
-          "dobc_u": "dobc_step u", "dobc_next": "dobc_step z", "z0": "dobc_init z",
+          "dobc_u": "dobc_step u", "dobc_next": "dobc_step z", "z0": "dobc_init z", "mom0": "mom_init m",
+          "mom_u": "mom_step u", "mom_next": "mom_step m", "mom_dhat": "mom_estimate dhat",
           "seq_npid_u": "npid sequence u", "seq_int_e": "npid sequence int_e", "seq_dobc_u": "dobc sequence u",
           "seq_z": "dobc sequence z"}
 IMPLICIT_CHECKS = {"u0": "dobc_init u"}   # checked in --observer implicit builds only
@@ -112,8 +120,10 @@ def _floats(v) -> tuple[float, ...]:
 
 def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
     """``count`` random cases (fixed seed) with reference outputs at dt = SEQUENCE_DT
-    (for the implicit observer step also a held voltage, drawn after the explicit inputs)."""
-    rng = np.random.default_rng(seed)
+    (for the implicit observer step also a held voltage, drawn after the explicit inputs;
+    the momentum observer's state m from a stream of its own, seed + 1, so the others' inputs
+    are those of the forms before it)."""
+    rng, rng_m = np.random.default_rng(seed), np.random.default_rng(seed + 1)
     n = ref.n
     out = []
     for _ in range(count):
@@ -121,6 +131,7 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
              + _dyadic(rng, -2.0, 2.0, n) + _dyadic(rng, -5.0, 5.0, n))
         int_e, z = _dyadic(rng, -1.0, 1.0, n), _dyadic(rng, -1.0, 1.0, n)
         held = _dyadic(rng, -1.0, 1.0, n) if ref.implicit else []
+        m = _dyadic(rng_m, -1.0, 1.0, n)
 
         def compute():
             dobc = ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit else ref.dobc_step(z, x,
@@ -129,7 +140,9 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
                     ref.dobc_init(x), *((ref.dobc_held(x),) if ref.implicit else ()))
         got = list(map(_floats, _proved(compute, ref)))
         u0 = got.pop() if ref.implicit else ()
-        out.append(Case(tuple(x), tuple(int_e), tuple(z), *got, held=tuple(held), u0=u0))
+        mom = list(map(_floats, _proved(lambda: (ref.mom_init(x), *ref.mom_step(m, x, SEQUENCE_DT),
+                                                 ref.mom_dhat(x, m)), ref)))
+        out.append(Case(tuple(x), tuple(int_e), tuple(z), *got, tuple(m), *mom, held=tuple(held), u0=u0))
     return tuple(out)
 
 
@@ -204,8 +217,11 @@ def case_tolerances(bounds: ApiBounds, cs: Sequence[Case], real: str) -> tuple[d
     n = bounds.n
     x = np.array([c.x for c in cs])
     npid = bounds.npid_step(np.array([c.int_e for c in cs]), x, SEQUENCE_DT)
+    m = np.array([c.m for c in cs])
+    mom = bounds.mom_step(m, x, SEQUENCE_DT)
     rows = {"gains": bounds.gains(x[:, :n]), "mpc": bounds.mpc_step(x), "npid_u": npid.u_bound,
-            "npid_next": npid.next_bound, "z0": bounds.dobc_init(x)}
+            "npid_next": npid.next_bound, "z0": bounds.dobc_init(x), "mom0": bounds.mom_init(x),
+            "mom_u": mom.u_bound, "mom_next": mom.next_bound, "mom_dhat": bounds.mom_estimate(m, x)}
     if bounds.implicit:
         ops = bounds.operations("observer") + bounds.operations("dobc")
         return tuple({**{f: tolerance(rows[f][k], getattr(c, f), real) for f in rows},

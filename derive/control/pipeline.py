@@ -15,11 +15,12 @@ from derive.dynamics.dag import Substitution
 from derive.dynamics.equations import Dynamics, derive_dynamics
 from derive.dynamics.planar import lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
+from derive.control.momentum import Momentum, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
-from derive.model.spec import Arm
+from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
 
 
@@ -69,6 +70,8 @@ class Derivation:
     speed_bound: sp.Expr | None
     warnings: tuple[str, ...]
     synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
+    momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
+    u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
 
     @property
     def n(self) -> int:
@@ -124,7 +127,9 @@ def derive(arm: Arm) -> Derivation:
     else:
         obs = derive_observer(dyn, w_values=ctl.w, W_values=ctl.W)
     npid = derive_npid(dyn, mpc, obs)
-    values = dyn.values + mpc.values + obs.values
+    mom = derive_momentum(dyn)
+    mom_values = tuple((p.symbol, p.rational) for p in momentum_parameters(ctl))
+    values = dyn.values + mpc.values + obs.values + mom_values
     rep = dict(values)
     num = Substitution(rep, keep_sums=True)  # one memo for every matrix: they share J's and G's subexpressions
 
@@ -146,6 +151,7 @@ def derive(arm: Arm) -> Derivation:
         C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
-        speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis)
+        speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
+        u_mom=num(mpc.u_star - mom.dhat))
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
     return d

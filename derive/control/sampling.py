@@ -1,4 +1,5 @@
-"""The largest sample time of each generated controller form (MPC eq. 15, DOBC eq. 21-27, NPID eq. 34).
+"""The largest sample time of each generated controller form (MPC eq. 15, DOBC eq. 21-27, NPID eq. 34,
+MOM: the generalized-momentum observer of derive.control.momentum).
 
 The sampled closed loop is the plant J theta'' + G = B u (eq. 12) under a zero-order hold on u,
 and the controller exactly as generated, in one of two discretisations (``derive generate
@@ -14,6 +15,11 @@ and the controller exactly as generated, in one of two discretisations (``derive
   applied u). NPID applies u = u* + B^-1 W x, (J + dt W) x = J xi, xi = C^-1 (e' + K2 e + K1 int e):
   the PID form with W replaced by W_dt = W (J + dt W)^-1 J, the gain the backward-Euler observer
   applies (derive.codegen.kernels); the integral stays forward Euler.
+
+MOM is stepped the same way in both builds: u_k = u* - B^-1 K (J theta'_k - m_k), then
+m_{k+1} = m_k + dt (B u_k + C^T theta'_k - g - F theta'_k + K (J theta'_k - m_k)) with the applied
+u_k (forward Euler): the observer's own rate is the diagonal K, so dt K < 2 bounds it by itself, and
+the sampled loop below gives the limit of the whole (the predictive law included).
 
 Why the ordering matters: with s = z + W theta' = B dhat, the forward-Euler loop telescopes to
 s_k = s_{k-1} + W (theta'_k - theta'_{k-1}) + dt W J^-1 (G - B u_{k-1} - s_{k-1}), and u holds the
@@ -31,7 +37,7 @@ Linearised at an operating point (theta0, theta0', reference y_d = C theta0, y_d
 y_d'' = 0, u0 the law's output): x = (theta, theta'), c the form's state,
 
     x_{k+1} = Phi x_k + Gamma u_k,  (Phi, Gamma) = ZOH of (df/dx, df/du) over dt,
-    u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k   (explicit),
+    u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k   (explicit, and MOM),
 
 (for the implicit DOBC the loop's state is (x_k, z_{k-1}, u_{k-1})), and the loop is stable at that
 point when the spectral radius of its transition matrix is below 1. The limit is the largest dt
@@ -52,7 +58,8 @@ import sympy as sp
 
 from derive.dynamics.program import lambdify
 
-FORMS = ("mpc", "dobc", "npid")
+FORMS = ("mpc", "dobc", "npid", "mom")
+SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
 OBSERVERS = ("explicit", "implicit")   # derive generate --observer
 _Z_ONLY = "z-only"   # backward Euler of z before the measurement moves: an analysis variant (docstring)
 MARGIN = 0.9
@@ -112,8 +119,12 @@ class SampledLoop:
         self.B = np.array(d.B.tolist(), dtype=float)
         self.W = np.array(d.W.tolist(), dtype=float)
         self.C = np.array(d.C.tolist(), dtype=float)
+        mom = d.momentum
         self.laws = {"mpc": _batched(x, d.measured(d.u_star)), "dobc": _batched(x + list(s.z), d.measured(d.u_dobc)),
-                     "npid": _batched(x + list(s.int_e), d.measured(d.u_npid))}
+                     "npid": _batched(x + list(s.int_e), d.measured(d.u_npid)),
+                     "mom": _batched(x + list(mom.m), d.measured(d.u_mom))}
+        # the momentum observer's m' = B u + C^T theta' - g - F theta' + K (J theta' - m) (forward Euler)
+        self.mom_rate = _batched(th + dth + list(mom.m) + list(s.u), d.numeric(mom.m_rate))
         # u_npid = u* + B^-1 W xi (derive.control.npid): the implicit NPID replaces W by W_dt there
         self.xi = _batched(x + list(s.int_e), d.measured(d.numeric(d.npid.xi)))
 
@@ -129,7 +140,8 @@ class SampledLoop:
     def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
         """Jacobians at the operating points (rows of Q, DQ), stacked over the points: A = df/dx,
         Bu = df/du, Ux = du/dx, Uc = du/dc (the form's state c), J, dr = d(G - W theta')/dx,
-        Xi = dxi/d(x, c) for NPID (xi of derive.control.npid, u_npid = u* + B^-1 W xi), else zeros."""
+        Xi = dxi/d(x, c) for NPID (xi of derive.control.npid, u_npid = u* + B^-1 W xi), else zeros;
+        R = dm'/d(x, m, u) for MOM (at m = J theta', where r = 0), else absent."""
         n, P = self.n, Q.shape[0]
         ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
         law = self.laws[form]
@@ -140,8 +152,9 @@ class SampledLoop:
         def xi_of(XC):
             return self.xi(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
 
+        p0 = np.einsum("pij,pj->pi", self.mass(Q), DQ)   # m = J theta': r = 0, dhat = 0 at the point
         XC0 = np.hstack([Q, DQ] + ([-DQ @ self.W.T] if form == "dobc" else [np.zeros((P, n))] if form == "npid"
-                                   else []))
+                                   else [p0] if form == "mom" else []))
         Uxc = _jac(u_of, XC0)
 
         def f(XU):
@@ -152,8 +165,11 @@ class SampledLoop:
         # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
         dr = _jac(self.G, np.hstack([Q, DQ])) - np.hstack([np.zeros((n, n)), self.W])
         Xi = _jac(xi_of, XC0) if form == "npid" else np.zeros((P, n, 3 * n))
-        return {"A": F[:, :, :2 * n], "Bu": F[:, :, 2 * n:], "Ux": Uxc[:, :, :2 * n], "Uc": Uxc[:, :, 2 * n:],
-                "J": self.mass(Q), "dr": dr, "Xi": Xi}
+        out = {"A": F[:, :, :2 * n], "Bu": F[:, :, 2 * n:], "Ux": Uxc[:, :, :2 * n], "Uc": Uxc[:, :, 2 * n:],
+               "J": self.mass(Q), "dr": dr, "Xi": Xi}
+        if form == "mom":
+            out["R"] = _jac(self.mom_rate, np.hstack([XC0, u_of(XC0)]))
+        return out
 
 
 def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -253,7 +269,10 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
     eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
         return np.abs(np.linalg.eigvals(Phi + Gam @ Ux)).max(axis=-1)
-    if form == "npid":                      # int_e + dt (yd - C theta)
+    if form == "mom":                       # m + dt m'(x, m, u), the same in both discretisations
+        R = dt * L["R"]
+        Sx, Sc, Su = R[:, :, :m], eye + R[:, :, m:m + n], R[:, :, m + n:]
+    elif form == "npid":                      # int_e + dt (yd - C theta)
         if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
             BW = np.linalg.solve(loop.B, loop.W)
             Wdt = loop.W @ np.linalg.solve(L["J"] + dt * loop.W, L["J"])
@@ -261,7 +280,7 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
             Ux, Uc = Ux + F @ L["Xi"][:, :, :m], Uc + F @ L["Xi"][:, :, m:]
         Sx = np.broadcast_to(np.hstack([-dt * loop.C, np.zeros((n, n))]), (P, n, m))
         Sc, Su = eye, np.zeros((P, n, n))
-    elif observer == "implicit":            # state (x_k, z_{k-1}, u_{k-1}): z_k first, then u_k
+    elif observer == "implicit":            # DOBC, state (x_k, z_{k-1}, u_{k-1}): z_k first, then u_k
         K = dt * loop.W @ np.linalg.inv(L["J"] + dt * loop.W)
         Zx, Zz, Zu = K @ L["dr"], eye - K, -K @ loop.B                 # z_k = Zx x_k + Zz z_{k-1} + Zu u_{k-1}
         Vx, Vz, Vu = Ux + Uc @ Zx, Uc @ Zz, Uc @ Zu                    # u_k in the same
@@ -300,13 +319,14 @@ def _loop(d) -> SampledLoop:
 
 def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
     """The sample-time limit of every form (FORMS) with the observer discretisation ``observer``
-    (cached per derivation; the MPC law has no observer, its limit is shared)."""
+    (cached per derivation; MPC has no observer and MOM steps the same in both: their limits are shared)."""
     def make() -> dict[str, SampleLimit]:
         loop = _loop(d)
         out = {form: sample_limit(d, form, observer, loop=loop) for form in FORMS
-               if form != "mpc" or observer == "explicit"}
-        if "mpc" not in out:
-            out = {"mpc": limits(d, "explicit")["mpc"], **out}
+               if form not in SHARED or observer == "explicit"}
+        if observer != "explicit":
+            shared = limits(d, "explicit")
+            out = {f: out[f] if f in out else shared[f] for f in FORMS}
         return out
 
     return _cached(_LIMITS, d, observer, make)
@@ -332,7 +352,8 @@ def summary(d, observer: str = "explicit") -> str:
 def summary_all(d) -> str:
     """One line with both discretisations, as ``derive check`` and ``derive show`` print it."""
     e, i = limits(d, "explicit"), limits(d, "implicit")
-    return (f"largest sample time ({_how(e)}): MPC {_ms(e['mpc'].limit)}; DOBC {_ms(e['dobc'].limit)}, "
+    return (f"largest sample time ({_how(e)}): MPC {_ms(e['mpc'].limit)}; MOM {_ms(e['mom'].limit)} "
+            f"(momentum observer, the same step in both builds); DOBC {_ms(e['dobc'].limit)}, "
             f"NPID {_ms(e['npid'].limit)} with the forward-Euler observer step (derive generate's default); "
             f"DOBC {_ms(i['dobc'].limit)}, NPID {_ms(i['npid'].limit)} with --observer implicit")
 

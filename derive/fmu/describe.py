@@ -154,7 +154,7 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
     if f.estimate:
         for i in range(d.n):
             add(f"dhat[{i + 1}]", "output", "discrete", "exact", "0.0", "V",
-                f"disturbance estimate of joint {i + 1}, dhat = B^-1 (z + W theta') (eq. 22), "
+                f"disturbance estimate of joint {i + 1}, {f.estimate_law}, "
                 "the one the last step used; 0 before the first step", f"m->dhat[{i}]")
     if mask_type(v):
         for i in range(d.n):

@@ -95,6 +95,7 @@ kernel_dobc_init dobc_estimate kernel_dhat selftest h n np ok enonfinite edt ker
 mass_matrix bias gravity input_matrix forward_dynamics plant plant_h plant_selftest plant_kernel_mass_matrix
 plant_kernel_bias plant_kernel_gravity plant_kernel_input_matrix plant_kernel_forward_dynamics
 build_tests install top_level cmake_dir
+mom_state mom_init mom_step mom_estimate kernel_mom kernel_mom_next kernel_mom_init
 """.split())
 # A name ending in _<tail> would make the same names as the arm without it: arm x_kernel's
 # x_kernel_gains is arm x's kernel; x_kernels.h and the x_selftest target are arm x's files.

@@ -78,6 +78,9 @@ class Controller:
     derive.control.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
     with the structure ``observer_structure``: "chen" or "full"). ``observer_rate``
     [1/s]: the exponential rate the observer certificate must give (0: any).
+    ``momentum_gain``: the diagonal gain K [1/s] of the generalized-momentum observer
+    (form mom, derive.control.momentum: r' = K (B d - r)), one per joint; empty when the
+    arm file does not give it (MOMENTUM_GAIN for every joint).
     """
 
     T1: Fraction
@@ -89,6 +92,7 @@ class Controller:
     w_auto: bool = False
     observer_rate: Fraction = Fraction(0)
     observer_structure: str = "chen"
+    momentum_gain: tuple[Fraction, ...] = ()   # K of the momentum observer [1/s]; () = MOMENTUM_GAIN each
 
 
 @dataclass(frozen=True)
@@ -161,6 +165,22 @@ def full_w_symbols(n: int) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Symbol(f"W{i + 1}_{j + 1}", real=True) for i in range(n) for j in range(n))
 
 
+MOMENTUM_GAIN = Fraction(50)   # 1/s: the default K_i of the momentum observer (time constant 20 ms)
+
+
+def momentum_symbols(n: int) -> tuple[sp.Symbol, ...]:
+    """Gain symbols kr1..krn [1/s] of the momentum observer, K = diag(kr) (derive.control.momentum)."""
+    return tuple(sp.Symbol(f"kr{i + 1}", positive=True) for i in range(n))
+
+
+def momentum_parameters(c: "Controller") -> tuple[Parameter, ...]:
+    """K of the momentum observer as parameters kr1..krn (the arm file's, else MOMENTUM_GAIN)."""
+    gains = c.momentum_gain or (MOMENTUM_GAIN,) * len(c.C)
+    return tuple(Parameter(s, v, "1/s", f"controller.momentum_gain[{i}]",
+                           f"momentum observer gain K{i}: r' = K (B d - r) (form mom)")
+                 for i, (s, v) in enumerate(zip(momentum_symbols(len(gains)), gains), 1))
+
+
 def observer_parameters(w=None, W=None, field: str = "controller.w") -> tuple[Parameter, ...]:
     """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W)."""
     if W is not None:
@@ -173,13 +193,14 @@ def observer_parameters(w=None, W=None, field: str = "controller.w") -> tuple[Pa
 
 
 def controller_parameters(c: Controller) -> tuple[Parameter, ...]:
-    """T1, T2 (eq. 14) and the observer gain (eq. 25; none here for w = "auto": the
-    pipeline adds the synthesised one) as parameters; k1, k2 are expressions of T1, T2."""
+    """T1, T2 (eq. 14), the observer gain (eq. 25; none here for w = "auto": the
+    pipeline adds the synthesised one) and the momentum observer's K as parameters;
+    k1, k2 are expressions of T1, T2."""
     out = [Parameter(T1_SYMBOL, c.T1, "s", "controller.T1", "minimum prediction time T1 (eq. 14)"),
            Parameter(T2_SYMBOL, c.T2, "s", "controller.T2", "maximum prediction time T2 (eq. 14)")]
     if not c.w_auto:
         out += observer_parameters(c.w, c.W)
-    return tuple(out)
+    return tuple(out) + momentum_parameters(c)
 
 
 def gravity_parameter(g: Fraction) -> Parameter:
@@ -287,12 +308,13 @@ ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)
 URDF_ONLY = ("base_link", "tip_link", "locked")
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None,
-                   "observer_rate": None, "observer_structure": None}
+                   "observer_rate": None, "observer_structure": None, "momentum_gain": None}
 KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
               "or urdf = \"robot.urdf\" under [arm]")
 W_EXPECTED = ("an array of n observer gains w_j > 0 [1/s] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
               "(a full W), or 'auto' (chosen by an SDP for max_joint_speed)")
 RATE = Num("1/s", _ZERO)
+MOMENTUM = Num("1/s", _ZERO, True)   # controller.momentum_gain[i] > 0
 
 
 def _kind(r: Reader, top: dict, arm: Any) -> str | None:
@@ -465,6 +487,7 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
         r.add("controller.T2", f"a number > T1 = {fmt(T1)} (s; the prediction horizon [T1, T2] of eq. 14)", shown)
     w, W, auto = _observer_gain(r, d, n)
     speeds = _vector(r, d, "max_joint_speed", n, POSITIVE["rad/s"])
+    momentum = _vector(r, d, "momentum_gain", n, MOMENTUM)
     rate = r.number(d, "observer_rate", f, RATE, _ZERO)
     structure = d.get("observer_structure", "chen")
     if structure not in OBSERVER_STRUCTURES or ("observer_structure" in d and not auto):
@@ -474,9 +497,10 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
         r.add("controller.max_joint_speed", "the speed box [rad/s] W is synthesised for (w = 'auto')",
               "nothing (the key is missing)")
     C = _matrix(r, d.get("C"), n)
-    if None in (T1, T2, rate) or not (w or W or auto) or (speeds and None in speeds):
+    if None in (T1, T2, rate) or not (w or W or auto) or (speeds and None in speeds) or (momentum and None in momentum):
         return None
     return Controller(T1, T2, w, C, tuple(speeds) if speeds else None, W=W, w_auto=auto, observer_rate=rate,
+                      momentum_gain=tuple(momentum) if momentum else (),
                       observer_structure=structure if structure in OBSERVER_STRUCTURES else "chen")
 
 

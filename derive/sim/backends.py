@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from derive.codegen.files import generate_files
+from derive.codegen.forms import FORMS
 from derive.codegen.emit import write_tree
 from derive.errors import DeriveError
 from derive.codegen.kernels import ParamsMode
@@ -56,7 +57,9 @@ class PythonController:
         self.m, self.form, self.n = module, form, module.N
         self.params = module.Params()
         self.params.u_max = list(u_max)
-        self.s = module.NpidState() if form == "npid" else module.DobcState() if form == "dobc" else None
+        self.s = {"npid": module.NpidState, "dobc": module.DobcState, "mom": module.MomState}.get(
+            form, lambda: None)()
+        self._field = FORMS[form].state.field if FORMS[form].state else None
 
     def _inp(self, x):
         n = self.n
@@ -81,11 +84,11 @@ class PythonController:
     def state(self) -> list[float]:
         if self.s is None:
             return []
-        return list(self.s.int_e if self.form == "npid" else self.s.z)
+        return list(getattr(self.s, self._field))
 
     @state.setter
     def state(self, values) -> None:
-        setattr(self.s, "int_e" if self.form == "npid" else "z", [float(v) for v in values])
+        setattr(self.s, self._field, [float(v) for v in values])
 
 
 class CController:

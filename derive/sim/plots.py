@@ -15,9 +15,9 @@ import numpy as np  # noqa: E402
 from derive.sim.simulate import Trace  # noqa: E402
 
 STYLE = {"mpc": ("tab:red", "-"), "dobc": ("tab:blue", "--"), "npid": ("tab:green", "-"),
-         "npid_unprotected": ("tab:orange", ":")}
+         "npid_unprotected": ("tab:orange", ":"), "mom": ("tab:purple", "-.")}
 LABEL = {"mpc": "MPC (eq. 15)", "dobc": "DOBC (eq. 27)", "npid": "NPID (eq. 34)",
-         "npid_unprotected": "PID without anti-windup"}
+         "npid_unprotected": "PID without anti-windup", "mom": "MOM (momentum observer)"}
 
 
 def _label(tr: Trace) -> str:

@@ -33,10 +33,11 @@ from derive.model.simspec import SimSettings
 from derive.progress import progress
 from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
 
-CONTROLLERS = ("mpc", "dobc", "npid")
+CONTROLLERS = ("mpc", "dobc", "npid", "mom")   # derive simulate's default list
 VARIANTS = {"mpc": ("mpc", True), "dobc": ("dobc", True), "npid": ("npid", True),
             "npid_unprotected": ("npid", False),   # form, limits known to the controller
-            "dobc_zero_init": ("dobc", True)}      # dhat(0) = 0 instead of the derived estimate
+            "dobc_zero_init": ("dobc", True),      # dhat(0) = 0 instead of the derived estimate
+            "mom": ("mom", True)}                  # the generalized-momentum observer (derive.control.momentum)
 ERRORS = {1: "a non-finite input, state or result (ENONFINITE)", 2: "a bad sample time (EDT)"}
 
 
@@ -122,7 +123,12 @@ def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inp
         J = np.array(lambdify(d.theta, d.J)(*x[:n]), dtype=float)
         W = np.array(d.W.tolist(), dtype=float)
         rho = float(max(abs(np.linalg.eigvals(W @ np.linalg.inv(J)))))
-        if form == "dobc" and rho * s.sample_time >= 2:
+        gains = [float(dict(d.values)[k]) for k in d.momentum.k]
+        if form == "mom" and max(gains) * s.sample_time >= 2:
+            causes.append(f"the sample time {s.sample_time:g} s is too long for the momentum observer: dt K = "
+                          f"{max(gains) * s.sample_time:.3g} >= 2, so its forward Euler step of m is unstable; use "
+                          f"sample_time < {2 / max(gains):.3g} s or a smaller controller.momentum_gain")
+        elif form == "dobc" and rho * s.sample_time >= 2:
             causes.append(f"the sample time {s.sample_time:g} s is too long for the observer: dt times the "
                           f"spectral radius of L = W J^-1 is {rho * s.sample_time:.3g} >= 2 at this pose, so its "
                           f"forward Euler step (eq. 21) is unstable; use sample_time < {2 / rho:.3g} s or smaller w")
@@ -145,7 +151,27 @@ def _trace(name: str, s: SimSettings, plant: TruePlant | Plant, form: str, theta
     u_max = np.asarray(plant.u_max, dtype=float)
     t = np.arange(len(theta)) * s.sample_time
     sat = np.abs(u) >= u_max * (1 - 1e-12)
-    return Trace(name, t, theta, dtheta, yd, u, dhat if form == "dobc" else None, sat.astype(bool), failure)
+    return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure)
+
+
+ESTIMATES = ("dobc", "mom")   # the forms whose traces carry the disturbance estimate each step used
+
+
+def momentum_estimate(d: Derivation):
+    """f(theta, theta', m) -> dhat = B^-1 K (J(theta) theta' - m) of the momentum observer
+    (derive.control.momentum) for rows (k, n) of measured angles, velocities and states
+    (k, n): what <arm>_mom_estimate returns, in double."""
+    n = d.n
+    J = lambdify(list(d.theta), list(d.J))   # each shared subexpression once, over arrays
+    values = dict(d.values)
+    gain = np.array([float(values[k]) for k in d.momentum.k]) / np.array(d.B.tolist(), dtype=float).diagonal()
+
+    def f(theta, dtheta, m) -> np.ndarray:
+        theta, dtheta, m = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (theta, dtheta, m))
+        k = theta.shape[0]
+        Jk = np.stack([np.broadcast_to(np.asarray(v, dtype=float), (k,)) for v in J(*theta.T)], axis=-1)
+        return gain * (np.einsum("kij,kj->ki", Jk.reshape(k, n, n), dtheta) - m)
+    return f
 
 
 def run(d: Derivation, backend, plant: Plant, s: SimSettings, name: str, show: bool = False) -> Trace:
@@ -170,6 +196,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
     alpha = tacho_alpha(s)
     W = np.array(d.W.tolist(), dtype=float)
     Binv = 1.0 / np.array(d.B.tolist(), dtype=float).diagonal()
+    mom_dhat = momentum_estimate(d) if any(form == "mom" for _, form, _ in runs) else None
     r_all = pulses(s, n, steps)
     rows = len(runs)
     x = np.tile(np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)]), (rows, 1))  # at rest
@@ -201,6 +228,8 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
                         ctl.state = list(-(W @ dq_filtered[row]))
                 if form == "dobc":  # the estimate this step uses (eq. 22)
                     out["dhat"][j, k] = Binv * (np.array(ctl.state) + W @ dq_filtered[row])
+                elif form == "mom":  # r = K (J theta' - m), dhat = B^-1 r (derive.control.momentum)
+                    out["dhat"][j, k] = mom_dhat(q_meas[row], dq_filtered[row], ctl.state)[0]
                 u[row] = np.clip(ctl.step(inp, dt), -plant.u_max, plant.u_max)  # the amplifier saturates anyway
             except ControllerError as exc:
                 failures[j], ended[j] = diagnose(d, s, name, k, exc.code, inp), k
@@ -237,6 +266,9 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance, plant.u_max,
                    pulses(s, n, steps), nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps)
     dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
+    if form == "mom":
+        measured = raw.theta + (nq[:len(raw.theta)] if nq is not None else 0.0)
+        dhat = momentum_estimate(d)(measured, raw.filtered, raw.state)
     failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None
     return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure)
 

@@ -134,3 +134,45 @@ int glasgow_2link_dobc_estimate(const glasgow_2link_dobc_state *s, const glasgow
     for (i = 0; i < N; ++i) dhat[i] = v[i];
     return GLASGOW_2LINK_OK;
 }
+
+int glasgow_2link_mom_init(glasgow_2link_mom_state *s, const glasgow_2link_input *in)
+{
+    real m0[N];
+    int i;
+    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;
+    glasgow_2link_kernel_mom_init(in->theta, in->dtheta, m0);
+    if (!finite_all(m0, N)) return GLASGOW_2LINK_ENONFINITE;
+    for (i = 0; i < N; ++i) s->m[i] = m0[i];
+    return GLASGOW_2LINK_OK;
+}
+
+int glasgow_2link_mom_step(glasgow_2link_mom_state *s, const glasgow_2link_input *in, real dt, real u[N],
+    mask *clipped)
+{
+    real v[N], dhat[N], next[N];
+    mask hit = 0;
+    int i;
+    if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
+    if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
+    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, v, dhat);
+    if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
+    for (i = 0; i < N; ++i) {
+        if (clip(&v[i], u_max[i])) hit |= (mask)1 << i;
+    }
+    glasgow_2link_kernel_mom_next(in->theta, in->dtheta, s->m, v, &dt, next);
+    if (!finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
+    for (i = 0; i < N; ++i) { s->m[i] = next[i]; u[i] = v[i]; }
+    if (clipped != NULL) *clipped = hit;
+    return GLASGOW_2LINK_OK;
+}
+
+int glasgow_2link_mom_estimate(const glasgow_2link_mom_state *s, const glasgow_2link_input *in, real dhat[N])
+{
+    real law[N], v[N];
+    int i;
+    if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
+    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, law, v);
+    if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
+    for (i = 0; i < N; ++i) dhat[i] = v[i];
+    return GLASGOW_2LINK_OK;
+}

@@ -8,6 +8,12 @@
  *   glasgow_2link_dobc_estimate  the estimate dhat of an observer state (eq. 22)
  *   glasgow_2link_npid_step  u = P e + D e' + I int e + N (eq. 34-38)
  *   glasgow_2link_gains      P(theta), D(theta), I (eq. 35-37)
+ *   glasgow_2link_mom_step   u = u* - dhat with the generalized-momentum observer:
+ *                          r = K (J theta' - m), m' = B u + C^T theta' - g - F theta' + r,
+ *                          so r' = K (B d - r) for any state: it converges for any
+ *                          K > 0 without a speed bound (unlike eq. 26), dhat = B^-1 r;
+ *                          it does not reduce to a PID (derive.control.momentum)
+ *   glasgow_2link_mom_estimate  its estimate dhat = B^-1 K (J theta' - m)
  *
  * Discretisation (sample time dt, the step called once per sample):
  *   NPID: int_e[k+1] = int_e[k] + dt e[k] (forward Euler), u[k] uses int_e[k];
@@ -18,7 +24,7 @@
  * Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
  * Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
  * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
- * ms.
+ * ms, MOM 36 ms.
  * Voltage limits (0 = none): u is clipped to [-u_max, u_max]; the observer is
  * fed the clipped u and the PID integrator of a clipped joint is held. Every
  * step reports the joints it clipped in *clipped (a glasgow_2link_mask; NULL: not
@@ -57,6 +63,8 @@
  *   T2 = 0.8333333333333334 s (controller.T2)
  *   w1 = 1.0 1/s (controller.w[1])
  *   w2 = 2.0 1/s (controller.w[2])
+ *   kr1 = 50.0 1/s (controller.momentum_gain[1])
+ *   kr2 = 50.0 1/s (controller.momentum_gain[2])
  */
 #ifndef GLASGOW_2LINK_H
 #define GLASGOW_2LINK_H
@@ -86,6 +94,10 @@ typedef struct { glasgow_2link_real int_e[2]; } glasgow_2link_npid_state;
 /* DOBC form: the observer state z (eq. 21). */
 typedef struct { glasgow_2link_real z[2]; } glasgow_2link_dobc_state;
 
+/* MOM form: the momentum observer state m (the integral of B u + C^T theta' - g - F theta' + r
+ * from J(theta0) theta0'), m[k+1] = m[k] + dt m'(k) with the applied u (forward Euler). */
+typedef struct { glasgow_2link_real m[2]; } glasgow_2link_mom_state;
+
 
 /* Row-major n x n gains P(theta), D(theta), I at theta (eq. 35-37). */
 void glasgow_2link_gains(const glasgow_2link_real theta[2], glasgow_2link_real gain_p[4], glasgow_2link_real gain_d[4], glasgow_2link_real gain_i[4]);
@@ -109,6 +121,18 @@ int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_inp
 /* The disturbance estimate dhat = B^-1 (z + W theta') (eq. 22) of state s at input
  * in: the estimate the next dobc_step from s uses; s is not changed. */
 int glasgow_2link_dobc_estimate(const glasgow_2link_dobc_state *s, const glasgow_2link_input *in, glasgow_2link_real dhat[2]);
+
+/* m(0) = J(theta0) theta0': the residual r starts at 0. */
+int glasgow_2link_mom_init(glasgow_2link_mom_state *s, const glasgow_2link_input *in);
+/* u = u* - B^-1 K (J theta' - m), then m + dt (B u + C^T theta' - g - F theta' + r) with the
+ * applied u (forward Euler in both observer builds: the momentum observer's own rate is K,
+ * stable for dt K < 2, and no J^-1 appears in it). */
+int glasgow_2link_mom_step(glasgow_2link_mom_state *s, const glasgow_2link_input *in, glasgow_2link_real dt, glasgow_2link_real u[2],
+    glasgow_2link_mask *clipped);
+
+/* The momentum observer's estimate dhat = B^-1 K (J theta' - m) of state s at input in:
+ * the estimate the next mom_step from s uses; s is not changed. */
+int glasgow_2link_mom_estimate(const glasgow_2link_mom_state *s, const glasgow_2link_input *in, glasgow_2link_real dhat[2]);
 
 #ifdef __cplusplus
 }

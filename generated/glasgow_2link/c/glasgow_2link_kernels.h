@@ -23,6 +23,12 @@ void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glas
 void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], glasgow_2link_real z0[2]);
 /* Disturbance estimate of the observer state (eq. 22) */
 void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], glasgow_2link_real dhat[2]);
+/* Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat */
+void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real m[2], glasgow_2link_real u[2], glasgow_2link_real dhat[2]);
+/* Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r */
+void glasgow_2link_kernel_mom_next(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real m[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real m_next[2]);
+/* Momentum observer state at the first sample: the generalized momentum J theta' */
+void glasgow_2link_kernel_mom_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real m0[2]);
 
 #ifdef __cplusplus
 }

@@ -8,12 +8,16 @@ mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
 of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
+mom_init/mom_step/mom_estimate: u = u* - dhat with the generalized-momentum
+observer, dhat = B^-1 r, r = K (J theta' - m), m stepped by forward Euler with the
+applied u in every build (r' = K (B d - r) for any K > 0 and any speed; it does not
+reduce to a PID: derive.control.momentum).
 A step returns (code, u, clipped): clipped is the bitmask of the joints it
 clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
 Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
 Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
 linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
-ms.
+ms, MOM 36 ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 with u and clipped None, and leaves its state untouched. An argument of the wrong
 shape or type (a vector that is not N real numbers, shape (N,); a dt that is not a
@@ -50,6 +54,8 @@ runtime, to change them):
     T2 = 0.8333333333333334 s (controller.T2)
     w1 = 1.0 1/s (controller.w[1])
     w2 = 2.0 1/s (controller.w[2])
+    kr1 = 50.0 1/s (controller.momentum_gain[1])
+    kr2 = 50.0 1/s (controller.momentum_gain[2])
 """
 from collections.abc import Sequence as _Sequence
 from math import (cos as _cos, exp as _exp, isfinite as _isfinite, log as _log,  # noqa: F401
@@ -87,6 +93,15 @@ class DobcState:
 
     def __init__(self):
         self.z = [0.0] * N
+
+
+class MomState:
+    """MOM form: the momentum observer state m (r = K (J theta' - m))."""
+
+    __slots__ = ("m",)
+
+    def __init__(self):
+        self.m = [0.0] * N
 
 U_MAX = (0.0, 0.0,)  # voltage limits [V], 0 = none
 
@@ -515,6 +530,197 @@ def _kernel_dhat(dtheta, z):
     return dhat
 
 
+def _kernel_mom(theta, dtheta, yd, dyd, ddyd, m):
+    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat; 57 operations."""
+    u = [0.0] * 2
+    dhat = [0.0] * 2
+    a0 = -739.1304347826087
+    a1 = dtheta[0]
+    a2 = 0.17929666666666666
+    a3 = 0.0810084
+    a4 = theta[1]
+    a5 = _cos(a4)
+    a3 = a3 * a5
+    a2 = a2 + a3
+    a3 = a1 * a2
+    a6 = m[0]
+    a3 = a3 - a6
+    a6 = dtheta[1]
+    a7 = 0.03181613333333334
+    a8 = 0.0405042
+    a5 = a8 * a5
+    a5 = a7 + a5
+    a9 = a6 * a5
+    a3 = a3 + a9
+    a0 = a0 * a3
+    a9 = 14.782608695652174
+    a10 = 0.019617647058823528
+    a10 = a10 * a1
+    a11 = -0.0405042
+    a12 = a1 + a6
+    a12 = a12 * a12
+    a11 = a11 * a12
+    a12 = _sin(a4)
+    a11 = a11 * a12
+    a10 = a10 + a11
+    a11 = a1 * a1
+    a8 = a8 * a11
+    a8 = a8 * a12
+    a10 = a10 + a8
+    a10 = a9 * a10
+    a0 = a0 + a10
+    a2 = a9 * a2
+    a10 = ddyd[0]
+    a12 = 3.0
+    a11 = dyd[0]
+    a11 = a11 - a1
+    a11 = a12 * a11
+    a10 = a10 + a11
+    a11 = 4.8
+    a13 = yd[0]
+    a14 = theta[0]
+    a13 = a13 - a14
+    a13 = a11 * a13
+    a10 = a10 + a13
+    a2 = a2 * a10
+    a0 = a0 + a2
+    a9 = a9 * a5
+    a2 = ddyd[1]
+    a13 = dyd[1]
+    a13 = a13 - a6
+    a12 = a12 * a13
+    a2 = a2 + a12
+    a12 = yd[1]
+    a12 = a12 - a4
+    a11 = a11 * a12
+    a2 = a2 + a11
+    a9 = a9 * a2
+    a0 = a0 + a9
+    u[0] = a0
+    a0 = -5681.818181818182
+    a7 = a7 * a6
+    a9 = m[1]
+    a7 = a7 - a9
+    a1 = a1 * a5
+    a7 = a7 + a1
+    a0 = a0 * a7
+    a1 = 113.63636363636364
+    a9 = 0.0004136
+    a9 = a9 * a6
+    a9 = a9 + a8
+    a9 = a1 * a9
+    a0 = a0 + a9
+    a9 = 3.615469696969697
+    a9 = a9 * a2
+    a0 = a0 + a9
+    a1 = a1 * a5
+    a1 = a1 * a10
+    a0 = a0 + a1
+    u[1] = a0
+    a0 = 739.1304347826087
+    a0 = a0 * a3
+    dhat[0] = a0
+    a0 = 5681.818181818182
+    a0 = a0 * a7
+    dhat[1] = a0
+    return u, dhat
+
+
+def _kernel_mom_next(theta, dtheta, m, u, dt):
+    """Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 43 operations."""
+    m_next = [0.0] * 2
+    a0 = m[0]
+    a1 = dt[0]
+    a2 = 50.0
+    a3 = dtheta[0]
+    a4 = 0.17929666666666666
+    a5 = 0.0810084
+    a6 = theta[1]
+    a7 = _cos(a6)
+    a5 = a5 * a7
+    a4 = a4 + a5
+    a4 = a3 * a4
+    a4 = a4 - a0
+    a5 = dtheta[1]
+    a8 = 0.03181613333333334
+    a9 = 0.0405042
+    a7 = a9 * a7
+    a7 = a8 + a7
+    a10 = a5 * a7
+    a4 = a4 + a10
+    a4 = a2 * a4
+    a10 = -0.019617647058823528
+    a10 = a10 * a3
+    a4 = a4 + a10
+    a10 = 0.06764705882352941
+    a11 = u[0]
+    a10 = a10 * a11
+    a4 = a4 + a10
+    a10 = -0.0405042
+    a11 = a3 + a5
+    a12 = a10 * a11
+    a6 = _sin(a6)
+    a12 = a12 * a6
+    a9 = a9 * a3
+    a13 = a9 * a6
+    a12 = a12 + a13
+    a12 = a3 * a12
+    a4 = a4 + a12
+    a9 = a9 * a5
+    a9 = a9 * a6
+    a4 = a4 + a9
+    a4 = a1 * a4
+    a0 = a0 + a4
+    m_next[0] = a0
+    a0 = m[1]
+    a8 = a8 * a5
+    a8 = a8 - a0
+    a7 = a3 * a7
+    a8 = a8 + a7
+    a2 = a2 * a8
+    a8 = -0.0004136
+    a8 = a8 * a5
+    a2 = a2 + a8
+    a8 = 0.0088
+    a5 = u[1]
+    a8 = a8 * a5
+    a2 = a2 + a8
+    a10 = a10 * a3
+    a10 = a10 * a11
+    a10 = a10 * a6
+    a2 = a2 + a10
+    a1 = a1 * a2
+    a0 = a0 + a1
+    m_next[1] = a0
+    return m_next
+
+
+def _kernel_mom_init(theta, dtheta):
+    """Momentum observer state at the first sample: the generalized momentum J theta'; 11 operations."""
+    m0 = [0.0] * 2
+    a0 = dtheta[0]
+    a1 = 0.17929666666666666
+    a2 = 0.0810084
+    a3 = theta[1]
+    a3 = _cos(a3)
+    a2 = a2 * a3
+    a1 = a1 + a2
+    a1 = a0 * a1
+    a2 = dtheta[1]
+    a4 = 0.03181613333333334
+    a5 = 0.0405042
+    a5 = a5 * a3
+    a5 = a4 + a5
+    a3 = a2 * a5
+    a1 = a1 + a3
+    m0[0] = a1
+    a4 = a4 * a2
+    a0 = a0 * a5
+    a4 = a4 + a0
+    m0[1] = a4
+    return m0
+
+
 _FLOAT, _LIST, _SIZE = {float}, {list}, {N}
 _INPUT = tuple(f"inp.{name}" for name in Input.__slots__)
 
@@ -564,9 +770,9 @@ def _input(inp):
 
 
 def _state(state, field):
-    """state.<field> (int_e of an NpidState, z of a DobcState), checked by _vector."""
+    """state.<field> (int_e of an NpidState, z or u of a DobcState, m of a MomState), checked by _vector."""
     if not hasattr(state, field):
-        kind = "NpidState" if field == "int_e" else "DobcState"
+        kind = {"int_e": "NpidState", "m": "MomState"}.get(field, "DobcState")
         raise TypeError(f"state: expected a {kind} (with .{field}), got {type(state).__name__}")
     return _vector(f"state.{field}", getattr(state, field))
 
@@ -671,6 +877,52 @@ def dobc_estimate(state, inp):
     if not _finite(*x, z):
         return ENONFINITE, None
     (dhat,) = (_kernel_dhat(x[1], z),)
+    if not _finite(dhat):
+        return ENONFINITE, None
+    return OK, np.array(dhat)
+
+
+def mom_init(state, inp):
+    """m(0) = J(theta0) theta0': the residual r = K (J theta' - m) starts at 0."""
+    x = _input(inp)
+    _state(state, "m")
+    if not _finite(*x):
+        return ENONFINITE
+    (m0,) = (_kernel_mom_init(x[0], x[1]),)
+    if not _finite(m0):
+        return ENONFINITE
+    state.m = list(m0)
+    return OK
+
+
+def mom_step(state, inp, dt):
+    """(code, u, clipped) of one step of u = u* - B^-1 r, r = K (J theta' - m), with the
+    generalized-momentum observer, then m + dt (B u + C^T theta' - g - F theta' + r) with
+    the applied u (forward Euler): r' = K (B d - r) for any K > 0 and any speed; it does
+    not reduce to a PID (derive.control.momentum)."""
+    x, m, dt = _input(inp), _state(state, "m"), _scalar("dt", dt)
+    if not (_isfinite(dt) and dt > 0):
+        return EDT, None, None
+    if not _finite(*x, m):
+        return ENONFINITE, None, None
+    u, _ = _kernel_mom(*x, m)
+    if not _finite(u):
+        return ENONFINITE, None, None
+    u, hit = _clip(u, U_MAX)
+    (nxt,) = (_kernel_mom_next(x[0], x[1], m, u, (dt,)),)
+    if not _finite(nxt):
+        return ENONFINITE, None, None
+    state.m = list(nxt)
+    return OK, np.array(u), _mask(hit)
+
+
+def mom_estimate(state, inp):
+    """(code, dhat): dhat = B^-1 K (J theta' - m) of ``state``, the estimate the next mom_step
+    from it uses; the state is not changed."""
+    x, m = _input(inp), _state(state, "m")
+    if not _finite(*x, m):
+        return ENONFINITE, None
+    _, dhat = _kernel_mom(*x, m)
     if not _finite(dhat):
         return ENONFINITE, None
     return OK, np.array(dhat)

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import importlib.util
 import math
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import pytest
 import sympy as sp
 
 import derive
+from derive.cli import main
 from derive.codegen.balls import to_float
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
@@ -219,7 +218,7 @@ def test_issue12_6_the_sample_time_limit_of_mom_is_that_of_its_forward_euler_ste
     assert bad.failure is not None or not np.all(np.isfinite(bad.theta)) or np.max(np.abs(bad.yd - bad.theta)) > 1.0
 
 
-def test_issue12_6_simulate_refuses_a_sample_time_above_the_mom_limit_exit_2(tmp_path):
+def test_issue12_6_simulate_refuses_a_sample_time_above_the_mom_limit_exit_2(tmp_path, capsys, monkeypatch):
     """K = 2000 1/s: the MOM limit is 0.9 x 2/K = 0.9 ms (to the bisection's 1 %), below the arm's 2 ms; derive simulate
     refuses it (exit 2, one message, nothing written), and check/show's line states it."""
     text = (ARMS_DIR / "glasgow_2link.toml").read_text()
@@ -230,11 +229,12 @@ def test_issue12_6_simulate_refuses_a_sample_time_above_the_mom_limit_exit_2(tmp
     assert lim == pytest.approx(0.9 * 2 / 2000, rel=0.01)
     shown = f"{lim * 1e3:.3g} ms"
     assert f"MOM {shown} (momentum observer, the same step in both builds)" in summary_all(d)
-    proc = subprocess.run([sys.executable, "-m", "derive", "simulate", str(arm), "--controllers", "npid,mom",
-                           "--out", str(tmp_path / "sim")], capture_output=True, text=True, cwd=tmp_path, timeout=300)
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
-    assert f"sample_time = 2 ms is above the MOM limit {shown}" in proc.stderr and "NPID" not in proc.stderr
-    assert not (tmp_path / "sim").exists()
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", str(arm), "--controllers", "npid,mom", "--out", str(tmp_path / "sim")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    assert f"sample_time = 2 ms is above the MOM limit {shown}" in err and "NPID" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fast_gain.toml"]
 
 
 @pytest.mark.parametrize("value, field, expected", [
@@ -252,21 +252,23 @@ def test_issue12_6_a_bad_momentum_gain_is_one_clear_message(tmp_path, value, fie
         derive.load_arm(path)
 
 
-def test_issue12_6_cli_names_a_bad_momentum_gain_exit_2(tmp_path):
+def test_issue12_6_cli_names_a_bad_momentum_gain_exit_2(tmp_path, capsys, monkeypatch):
     text = (ARMS_DIR / "glasgow_2link.toml").read_text()
     path = tmp_path / "bad.toml"
     path.write_text(text.replace("[controller]", "[controller]\nmomentum_gain = [50.0, 0.0]", 1))
-    proc = subprocess.run([sys.executable, "-m", "derive", "show", str(path)], capture_output=True, text=True,
-                          cwd=tmp_path, timeout=120)
-    assert proc.returncode == 2 and proc.stdout == "" and "Traceback" not in proc.stderr
-    assert "  - controller.momentum_gain[2]: expected a finite number > 0 (1/s), got 0.0" in proc.stderr
+    monkeypatch.chdir(tmp_path)
+    assert main(["generate", str(path), "--out", str(tmp_path / "out")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "Traceback" not in err and err.startswith("derive: error: invalid arm description ")
+    assert "  - controller.momentum_gain[2]: expected a finite number > 0 (1/s), got 0.0" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
 
 
-def test_issue12_6_the_arm_files_momentum_gain_reaches_the_law(tmp_path):
+def test_issue12_6_the_arm_files_momentum_gain_reaches_the_law(tmp_path, paper):
     text = (ARMS_DIR / "glasgow_2link.toml").read_text()
     path = tmp_path / "glasgow_2link.toml"
     path.write_text(text.replace("[controller]", "[controller]\nmomentum_gain = [20, 80]", 1))
     d = derive.derive(derive.load_arm(path))
     values = {str(k): v for k, v in d.values}
     assert (values["kr1"], values["kr2"]) == (20, 80)
-    assert derive.derive(derive.load_arm()).values[-2:] == tuple((k, sp.Integer(50)) for k in d.momentum.k)
+    assert paper[1].values[-2:] == tuple((k, sp.Integer(50)) for k in d.momentum.k)   # the default K

@@ -6,88 +6,14 @@ list as C or Python. Exact rationals become the nearest double exactly once.
 """
 from __future__ import annotations
 
-from fractions import Fraction
-
 import casadi as ca
 import sympy as sp
 
-from derive.dynamics.dag import Memo
-from derive.errors import DerivationError
 from derive.codegen.kernels import KernelSpec
+from derive.dynamics.dag import Memo
+from derive.dynamics.sx import _number, to_sx
 
-_FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, sp.exp: ca.exp,
-              sp.log: ca.log, sp.tanh: ca.tanh}
-
-
-def _number(x: sp.Number) -> float:
-    """The nearest double of an exact number (DerivationError beyond double's range)."""
-    try:
-        if isinstance(x, sp.Rational):
-            return float(Fraction(int(x.p), int(x.q)))  # correctly rounded
-        return float(x)
-    except OverflowError:
-        raise DerivationError(f"the constant {x} overflows double") from None
-
-
-def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -> ca.SX:
-    """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars;
-    ``memo`` (shared by the kernel's expressions) gives equal subexpressions
-    one SX node, by value numbering (never comparing two SymPy trees).
-    With ``constants`` (a dict), every number but 0 and +-1 becomes an SX
-    symbol, one per value, recorded there (number -> symbol): CasADi then
-    folds no constants, and the graph shows every operation the printed code
-    inherits (derive.codegen.accuracy analyses that graph)."""
-    hit = memo.get(id(expr))
-    if hit is not None:
-        return hit[1]
-    key = None
-    if expr.args:
-        for a in expr.args:  # compound arguments first: their numbers make this node's key
-            if a.args:
-                to_sx(a, env, memo, constants)
-        key = (expr.func, tuple(memo.number(a) if a.args else a for a in expr.args))
-        number = memo.numbered(key)
-        if number is not None:  # an equal subexpression is converted already
-            memo.put(expr, memo.objects[number], number)
-            return memo.objects[number]
-    if expr.is_Symbol:
-        try:
-            out = env[expr]
-        except KeyError:
-            raise DerivationError(f"symbol {expr} has no value in the kernel") from None
-    elif expr.is_Number:
-        if constants is None or expr in (0, 1, -1):
-            out = ca.SX(_number(expr))
-        else:
-            out = constants.setdefault(expr, ca.SX.sym(f"c{len(constants)}"))
-    elif expr.is_Add:
-        terms = [to_sx(a, env, memo, constants) for a in expr.args]
-        out = terms[0]
-        for t in terms[1:]:
-            out = out + t
-    elif expr.is_Mul:
-        factors = [to_sx(a, env, memo, constants) for a in expr.args]
-        out = factors[0]
-        for f in factors[1:]:
-            out = out * f
-    elif expr.is_Pow:
-        base, exp = expr.args
-        b = to_sx(base, env, memo, constants)
-        if exp.is_Integer:
-            k = int(exp)
-            out = b ** abs(k) if k != -1 else 1 / b
-            if k < -1:
-                out = 1 / out
-        elif exp == sp.Rational(1, 2):
-            out = ca.sqrt(b)
-        else:
-            out = b ** to_sx(exp, env, memo, constants)
-    elif expr.func in _FUNCTIONS:
-        out = _FUNCTIONS[expr.func](to_sx(expr.args[0], env, memo, constants))
-    else:
-        raise DerivationError(f"cannot translate {expr.func.__name__} to CasADi")
-    memo.put(expr, out, memo.register(key, out) if key is not None else None)
-    return out
+__all__ = ["_number", "to_function", "to_sx"]
 
 
 def to_function(spec: KernelSpec, constants: dict | None = None) -> ca.Function:

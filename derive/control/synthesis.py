@@ -111,7 +111,7 @@ def synthesise(model: InertiaModel, box, rate: float = 0.0, structure: str = "ch
         raise DerivationError(f"observer synthesis: structure {structure!r} is not one of {STRUCTURES}")
     start = time.perf_counter()
     n = model.n
-    cert = ObserverCertificate(model)
+    cert = ObserverCertificate(model, box)
     box = np.asarray(box, dtype=float)
     rng = np.random.default_rng(seed)
     dense = cert.samples(check_samples, seed=seed + 1)
@@ -140,7 +140,7 @@ def synthesise(model: InertiaModel, box, rate: float = 0.0, structure: str = "ch
             Wq = np.array([[float(x) for x in row] for row in exact])
             dec = cert.decide(Wq, box, 1.0, rate, budget)
             if dec.verdict is Verdict.REFUTED:   # the sound check found a point the samples missed: a cut
-                q = np.array(dec.point[0])[None, :]
+                q = cert.project(np.array(dec.point[0])[None, :])
                 Nq = cert.matrices(W, box, v, beta, q)[0]
                 consts = np.concatenate([consts, (W + W.T)[None] - Nq])
                 dense = np.vstack([dense, q])

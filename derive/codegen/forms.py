@@ -8,9 +8,11 @@ available everywhere by one entry here.
 
 The C API of a form ``f`` (prefix ``<arm>_``, parameters first in runtime builds):
 
-* stateless (``state is None``): ``int f_step(const input *in, real u[N])``;
+* stateless (``state is None``): ``int f_step(const input *in, real u[N], mask *clipped)``;
 * with state: ``int f_init(f_state *s, const input *in)`` and
-  ``int f_step(f_state *s, const input *in, real dt, real u[N])``;
+  ``int f_step(f_state *s, const input *in, real dt, real u[N], mask *clipped)``;
+  ``clipped`` (NULL allowed) receives which joints' u the voltage or torque limits clipped
+  (the Python module's ``f_step`` returns ``(code, u, clipped)``);
 * ``estimate``: ``int f_estimate(const f_state *s, const input *in, real dhat[N])``,
   the disturbance estimate the next step from ``s`` uses.
 """

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dynamics.spatial import (Mat, Vec, add, cross, dot, mat, mat_add, mul, scale, shift_inertia, vec,
+from derive.dynamics.spatial import (Mat, Vec, add, cross, dot, keep_sums, mat, mat_add, mul, scale, shift_inertia, vec,
                                      JointFrame)
 from derive.model.chain import Body
 
@@ -40,6 +40,7 @@ def body_composite(body: Body) -> Composite:
     return Composite(sp.sympify(body.mass), vec(body.first_moment), mat(body.inertia))
 
 
+@keep_sums
 def composites(bodies: Sequence[Composite], frames: Sequence[JointFrame]) -> list[Composite]:
     """Composite body of every joint, tip to base: body j plus composite j+1
     moved into F_j (rotated by R_{j+1}, shifted by p_{j+1})."""
@@ -67,6 +68,7 @@ def _project(f: JointFrame, force: Vec, moment: Vec) -> sp.Expr:
     return dot(f.axis, moment) if f.rotates else dot(f.axis, force)
 
 
+@keep_sums
 def gravity_torques(comp: Sequence[Composite], frames: Sequence[JointFrame], gravity: Vec) -> sp.Matrix:
     """g(q) (n x 1) from the composite bodies: gravity on composite i exerts the
     moment h_i x gravity and the force M_i gravity at F_i's origin, so
@@ -80,6 +82,7 @@ def gravity_torques(comp: Sequence[Composite], frames: Sequence[JointFrame], gra
     return sp.Matrix(out)
 
 
+@keep_sums
 def crba(comp: Sequence[Composite], frames: Sequence[JointFrame],
          reflected: Sequence[sp.Expr] | None = None) -> sp.Matrix:
     """J(q) (n x n, symmetric) of the chain from its :func:`composites`;

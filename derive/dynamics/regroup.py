@@ -26,8 +26,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from derive.dynamics.crba import Composite, body_composite
-from derive.dynamics.spatial import (ZERO, ZERO_VEC, add, congruence, mat, mat_add, matvec, scale, shift_inertia,
-                                     unit_axis, vec)
+from derive.dynamics.spatial import (ZERO, ZERO_VEC, add, congruence, keep_sums, mat, mat_add, matvec, scale,
+                                     shift_inertia, unit_axis, vec)
 from derive.model.chain import Body, Joint
 
 
@@ -60,6 +60,7 @@ def _onto_parent(parent: Composite, moved: Composite, joint: Joint) -> Composite
     return Composite(parent.M + moved.M, add(parent.h, add(h, scale(moved.M, p0))), mat_add(parent.I, I))
 
 
+@keep_sums
 def base_parameters(bodies: Sequence[Body], joints: Sequence[Joint]) -> tuple[Composite, ...]:
     """The bodies with every regroupable parameter moved towards the base (same dynamics)."""
     work = [body_composite(b) for b in bodies]

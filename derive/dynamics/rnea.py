@@ -24,13 +24,15 @@ from collections.abc import Sequence
 import sympy as sp
 
 from derive.dynamics.crba import Composite
-from derive.dynamics.spatial import ZERO, ZERO_VEC, Mat, Vec, add, cross, dot, matvec, scale, spin_matrix, JointFrame
+from derive.dynamics.spatial import (ZERO, ZERO_VEC, Mat, Vec, add, cross, dot, keep_sums, matvec, scale, spin_matrix,
+                                     JointFrame)
 
 
 def _is_zero(v: Vec) -> bool:
     return all(x == 0 for x in v)
 
 
+@keep_sums
 def rnea(bodies: Sequence[Composite], frames: Sequence[JointFrame], dq: Sequence[sp.Expr],
          ddq: Sequence[sp.Expr], gravity: Vec) -> sp.Matrix:
     """tau (n x 1) = J_rigid(q) q'' + C(q, q') q' + g(q) for the rigid chain

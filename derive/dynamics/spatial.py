@@ -17,19 +17,36 @@ Sources: R. Featherstone, *Rigid Body Dynamics Algorithms* (2008), ch. 2-3
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import sympy as sp
+from sympy.core.parameters import distribute
 
 from derive.model.chain import Joint, JointType
 
 Vec = tuple[sp.Expr, sp.Expr, sp.Expr]
 Mat = tuple[Vec, Vec, Vec]
 
+T = TypeVar("T")
+
 ZERO = sp.Integer(0)
 ONE = sp.Integer(1)
 ZERO_VEC: Vec = (ZERO, ZERO, ZERO)
+
+
+def keep_sums(fn: Callable[..., T]) -> Callable[..., T]:
+    """``fn`` run with SymPy's distribution of a number over a sum turned off:
+    a constant offset, a -1 of a signed-permutation rotation or a 1/2 times a
+    shared sum multiplies it (one operation) instead of being copied into each
+    of its terms (a new sum, the shared one lost). The recursions build under it."""
+    @functools.wraps(fn)
+    def run(*args, **kwargs) -> T:
+        with distribute(False):
+            return fn(*args, **kwargs)
+    return run
 
 
 def vec(v: Sequence[sp.Expr]) -> Vec:

@@ -249,7 +249,7 @@ def test_recursions_keep_shared_sums_fewer_operations_same_values() -> None:
     from derive.dynamics.rnea import rnea
     from derive.dynamics.spatial import vec
 
-    dyn = derive_dynamics(vendored_arm("ur5"))
+    dyn = numeric("ur5")[0]
     args = (dyn.bodies, dyn.frames, dyn.sym.dtheta, [0] * dyn.n, vec(dyn.chain.gravity))
     kept, spread = (dag_xreplace(list(f(*args)), dyn.subs) for f in (rnea, rnea.__wrapped__))
     assert count_ops_cse(kept) < 0.95 * count_ops_cse(spread)
@@ -262,3 +262,49 @@ def test_recursions_keep_shared_sums_fewer_operations_same_values() -> None:
     for _ in range(5):
         a, b = f(rng.uniform(-2, 2, dyn.n), rng.uniform(-2, 2, dyn.n))
         assert close(a, b) and np.abs(np.asarray(a)).max() > 1
+
+
+def _evaluator(exprs: list, symbols: list) -> ca.Function:
+    """A CasADi function of ``symbols`` computing ``exprs`` (shared subexpressions once)."""
+    x = ca.SX.sym("x", len(symbols))
+    memo = Memo()
+    env = dict(zip(symbols, ca.vertsplit(x)))
+    return ca.Function("f", [x], [ca.vertcat(*[to_sx(sp.sympify(e), env, memo) for e in exprs])])
+
+
+@pytest.mark.parametrize("name", ["synthetic", "panda"])
+def test_inverse_dynamics_by_one_rnea_pass_equals_j_a_plus_g(name: str) -> None:
+    """Dynamics.inverse_dynamics(a) = J a + G (eq. 12) at random states and
+    accelerations: the recursive form the generated laws compute (the synthetic
+    arm has a prismatic joint and an off-axis joint)."""
+    dyn = numeric(name)[0]   # shared with the Pinocchio tests of this module
+    a = [sp.Symbol(f"acc{i}", real=True) for i in range(dyn.n)]
+    mine = dag_xreplace(list(dyn.inverse_dynamics(a)), dyn.subs)
+    ref = dag_xreplace(list(dyn.J * sp.Matrix(a) + dyn.G), dyn.subs)
+    f = _evaluator(mine + ref, [*dyn.sym.theta, *dyn.sym.dtheta, *a])
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        out = np.asarray(f(rng.uniform(-2, 2, 3 * dyn.n))).ravel()
+        assert close(out[:dyn.n], out[dyn.n:]) and np.abs(out).max() > 1
+
+
+def test_u_star_by_rnea_equals_eq15_with_motor_terms() -> None:
+    """Mpc.u_star_rnea = u* of eq. (15) for the default arm (DC motors: B, the
+    reflected rotor inertia and the damping in play), every symbol valued."""
+    import derive
+    d = derive.derive(derive.load_arm())
+    s = d.dynamics.sym
+    rule = dict(d.values)
+    mine, ref = (dag_xreplace(list(m), rule) for m in (d.mpc.u_star_rnea, d.mpc.u_star))
+    symbols = [*s.theta, *s.dtheta, *s.e, *s.de, *s.ddyd]
+    f = _evaluator(mine + ref, symbols)
+    rng = np.random.default_rng(6)
+    for _ in range(10):
+        out = np.asarray(f(rng.uniform(-2, 2, len(symbols)))).ravel()
+        assert close(out[:d.n], out[d.n:]) and np.abs(out).max() > 1e-3
+
+
+def test_inverse_dynamics_refuses_the_wrong_number_of_accelerations() -> None:
+    dyn = numeric("panda")[0]
+    with pytest.raises(ValueError, match=r"inverse_dynamics: expected 7 accelerations, got 2"):
+        dyn.inverse_dynamics([0, 1])

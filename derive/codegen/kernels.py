@@ -147,7 +147,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     if implicit:
         xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
         Binv = value(B).inv()   # B is diagonal (eq. 12)
-        npid_u = law(d.mpc.u_star) + Binv * value(W) * sp.Matrix(xs)
+        npid_u = law(d.mpc.u_star_rnea) + Binv * value(W) * sp.Matrix(xs)
         npid_solves = (LinearSolve(xs, A, law(J * value(npid.xi))),)
         npid_doc = "u = u* + B^-1 W x, (J + dt W) x = J xi: eq. 34 with W_dt = W (J + dt W)^-1 J"
         z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),
@@ -156,7 +156,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         observer_doc = ("Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
                         "(J + dt W) y = G - B u - W theta' - z solved numerically")
     else:
-        npid_u, npid_solves, npid_doc = law(npid.u_npid), (), "u = P e + D e' + I int e + N, eq. 34"
+        npid_u, npid_solves, npid_doc = law(npid.u_npid_rnea), (), "u = P e + D e' + I int e + N, eq. 34"
         z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),)
         observer_doc = "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically"
     return (
@@ -166,13 +166,13 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
             Port("gain_d", _flat(value(npid.D)), "derivative gain D(theta), eq. 36"),
             Port("gain_i", _flat(value(npid.I)), "integral gain I, eq. 37")),
             "PID gains of the nonlinear PID predictive controller (eq. 35-37)"),
-        KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star)), "u*, eq. 15"),),
+        KernelSpec("mpc", (*x, *params), (Port("u", _flat(law(d.mpc.u_star_rnea)), "u*, eq. 15"),),
                    "Nonlinear predictive control law u* (eq. 15)"),
         KernelSpec("npid", (*x, Port("int_e", s.int_e, "integral of e (eq. 34)"), dt, *params), (
             Port("u", _flat(npid_u), npid_doc),
             Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
             "Nonlinear PID predictive control law (eq. 34-38) and its integrator step", npid_solves),
-        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc)), "u* - dhat, eq. 27"),),
+        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc_rnea)), "u* - dhat, eq. 27"),),
                    "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
         KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
             Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
@@ -202,7 +202,7 @@ def momentum_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], dt: Por
     m = Port("m", mom.m, "momentum observer state: the integral m of derive.control.momentum")
     return (
         KernelSpec("mom", (*x, m, *params), (
-            Port("u", _flat(d.measured(value(d.mpc.u_star)) - value(mom.dhat)),
+            Port("u", _flat(d.measured(value(d.mpc.u_star_rnea)) - value(mom.dhat)),
                  "u* - B^-1 r, r = K (J theta' - m): eq. 27 with the momentum estimate"),
             Port("dhat", _flat(value(mom.dhat)), "dhat = B^-1 K (J theta' - m)")),
             "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat"),

@@ -7,6 +7,10 @@ K2 = Tbar33^-1 Tbar32 (eq. 16-18). Since Tbar_i = diag(T_i, ..., T_i)
 
 The law is written without J^-1: (C J^-1 B)^-1 = B^-1 J C^-1, so
 u* = B^-1 J C^-1 (K1 e + K2 e' + yd'') + B^-1 G   (eq. 15 with e = yd - y, eq. 20).
+The same law in the form the generated code computes, ``u_star_rnea``, is
+B^-1 (J a + G) with a = C^-1 (K1 e + K2 e' + yd'') by one recursive
+Newton-Euler pass (:meth:`derive.dynamics.equations.Dynamics.inverse_dynamics`):
+neither J nor the product J a is formed.
 """
 from __future__ import annotations
 
@@ -40,13 +44,16 @@ class Mpc:
 
     K1, K2: n x n (k1 I, k2 I with k1, k2 the expressions of T1, T2 of eq. 16-18,
     so a runtime T2 changes the gains); Cout: n x n output matrix C (eq. 13);
-    u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; values: exact T1, T2.
+    u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; u_star_rnea: the
+    same law by the recursive Newton-Euler pass (what the kernels compute);
+    values: exact T1, T2.
     """
 
     K1: sp.Matrix
     K2: sp.Matrix
     Cout: sp.Matrix
     u_star: sp.Matrix
+    u_star_rnea: sp.Matrix
     values: tuple[tuple[sp.Symbol, sp.Rational], ...]
 
 
@@ -64,4 +71,6 @@ def derive_mpc(dyn: Dynamics, t1: Fraction, t2: Fraction, C: tuple[tuple[Fractio
     e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
     Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])
     u_star = Binv * dyn.J * Cout.inv() * (K1 * e + K2 * de + ddyd) + Binv * dyn.G
-    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, values=((T1, _rational(t1)), (T2, _rational(t2))))
+    u_star_rnea = Binv * dyn.inverse_dynamics(Cout.inv() * (K1 * e + K2 * de + ddyd))
+    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, u_star_rnea=u_star_rnea,
+               values=((T1, _rational(t1)), (T2, _rational(t2))))

@@ -45,6 +45,8 @@ class Npid:
     u_dobc: u* - dhat with dhat of eq. (22) (n x 1, eq. 27);
     P, D, I: n x n gains (eq. 35-37); N: n x 1 (eq. 38); xi: the PID error
     C^-1 (e' + K2 e + K1 int e) (n x 1), so that u_npid = u* + B^-1 W xi.
+    u_dobc_rnea, u_npid_rnea: u_dobc and u_npid with u* by the recursive
+    Newton-Euler pass (Mpc.u_star_rnea): the same laws, as the kernels compute them.
     """
 
     dhat_rate: sp.Matrix
@@ -57,6 +59,8 @@ class Npid:
     I: sp.Matrix
     N: sp.Matrix
     xi: sp.Matrix
+    u_dobc_rnea: sp.Matrix
+    u_npid_rnea: sp.Matrix
 
 
 def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
@@ -92,4 +96,5 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
     zero = {**{a: 0 for a in e}, **{a: 0 for a in de}, **{a: 0 for a in int_e}}
     N = matrix_xreplace(u_npid, zero)
     return Npid(dhat_rate=rate, dhat_t=dhat_t, dhat0=dhat0, u_dobc=mpc.u_star - obs.dhat,
-                u_npid=u_npid, P=P, D=D, I=I, N=N, xi=xi)
+                u_npid=u_npid, P=P, D=D, I=I, N=N, xi=xi, u_dobc_rnea=mpc.u_star_rnea - obs.dhat,
+                u_npid_rnea=mpc.u_star_rnea - dhat_pid)

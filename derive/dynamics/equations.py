@@ -28,7 +28,7 @@ from derive.dynamics.motors import motor_terms
 from derive.dynamics.program import dag_xreplace
 from derive.dynamics.regroup import base_parameters
 from derive.dynamics.rnea import rnea
-from derive.dynamics.spatial import ZERO, ZERO_VEC, JointFrame, vec
+from derive.dynamics.spatial import ZERO, ZERO_VEC, JointFrame, mul, vec
 from derive.model.chain import Chain
 from derive.model.spec import Arm
 from derive.model.symbols import JointSymbols
@@ -93,6 +93,18 @@ class Dynamics:
         """n x n Coriolis matrix C(q, q') (Christoffel-consistent: J' - 2C is
         skew-symmetric and C q' = bias - gravity), computed on first use."""
         return coriolis_matrix(self.bodies, self.frames, self.sym.dtheta)
+
+    def inverse_dynamics(self, ddq) -> sp.Matrix:
+        """n x 1 J(q) ddq + G(q, q') (eq. 12's left side at the accelerations ``ddq``,
+        n expressions) by one recursive Newton-Euler pass, plus the motor terms:
+        a law of the form J a + G without J or the product J a formed (about 1,100
+        operations for the Panda where J a + G takes about 1,600)."""
+        a = sp.Matrix(list(ddq))
+        if a.shape != (self.n, 1):
+            raise ValueError(f"inverse_dynamics: expected {self.n} accelerations, got {len(a)}")
+        rigid = rnea(self.bodies, self.frames, self.sym.dtheta, list(a), vec(self.chain.gravity))
+        reflected = sp.Matrix([mul(r, x) for r, x in zip(self.reflected, a)])
+        return rigid + reflected + self.damping * sp.Matrix(self.sym.dtheta)
 
     @cached_property
     def velocity_bias(self) -> sp.Matrix:

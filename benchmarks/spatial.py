@@ -2,12 +2,14 @@
 
 For each vendored arm file (tests/data/urdf/<arm>.toml): the time to derive its
 dynamics (CRBA, composite gravity, RNEA) and, separately, the Coriolis matrix;
-the operations after CSE (count_ops after sympy.cse, the arm's values put in)
-of J, the bias, g and C; the whole generation (``generate_files``: derivation,
-kernels, 40-digit reference vectors, files) and the C compile time of the
-library at -O2. Anchors from the issue: Panda derived in under 0.5 s with at
-most 1,400 operations for J and the bias together; urdf2casadi's UR5 graphs
-have 1,026 nodes for M, 648 for C q' and 199 for g.
+the operations after CSE (count_ops after sympy.cse, the arm's values put in,
+a rational constant one literal) of J, the bias, g and C, and the instructions
+of J and the bias as CasADi (the generated code) computes them; the whole
+generation (``generate_files``: derivation, kernels, 40-digit reference
+vectors, files) and the C compile time of the library at -O2. Anchors from
+the issue: Panda derived in under 0.5 s with at most 1,400 operations for J
+and the bias together; urdf2casadi's UR5 graphs have 1,026 nodes for M, 648
+for C q' and 199 for g.
 
 The generated C ``npid_step`` (gcc -O2, values baked in) per call, beside
 Pinocchio's C++ ``rnea(q, v, a)`` of the same arm (benchmarks/pinocchio_rnea_urdf.cpp,
@@ -28,7 +30,9 @@ import numpy as np
 import derive
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
-from derive.codegen.kernels import ParamsMode
+from derive.codegen.casadi_bridge import to_function
+from derive.codegen.kernels import KernelSpec, ParamsMode, Port
+from derive.codegen.printing import print_function
 from derive.dynamics.equations import derive_dynamics
 from derive.dynamics.identities import count_ops_cse
 from derive.dynamics.program import dag_xreplace
@@ -148,6 +152,15 @@ def _ops(dyn, exprs) -> int:
     return count_ops_cse(dag_xreplace(list(exprs), dyn.subs))
 
 
+def _casadi_ops(dyn, exprs) -> int:
+    """Operations of the expressions as the generated code computes them: the
+    instructions of their CasADi function (derive.codegen.casadi_bridge, CSE on)."""
+    s = dyn.sym
+    spec = KernelSpec("ops", (Port("theta", s.theta, ""), Port("dtheta", s.dtheta, "")),
+                      (Port("y", tuple(dag_xreplace(list(exprs), dyn.subs)), ""),), "")
+    return print_function(to_function(spec), "c").operations
+
+
 def measure(name: str) -> dict:
     arm = load_arm(URDF / f"{name}.toml")
     t = time.perf_counter()
@@ -157,7 +170,8 @@ def measure(name: str) -> dict:
     C = dyn.coriolis
     t_c = time.perf_counter() - t
     ops = {"J": _ops(dyn, dyn.J), "bias": _ops(dyn, dyn.bias), "g": _ops(dyn, dyn.gravity), "C": _ops(dyn, C),
-           "C q'": _ops(dyn, dyn.velocity_bias), "J + bias": _ops(dyn, list(dyn.J) + list(dyn.bias))}
+           "C q'": _ops(dyn, dyn.velocity_bias), "J + bias": _ops(dyn, list(dyn.J) + list(dyn.bias)),
+           "CasADi J + bias": _casadi_ops(dyn, list(dyn.J) + list(dyn.bias))}
     t = time.perf_counter()
     d = derive.derive(arm)
     files = generate_files(d, (URDF / f"{name}.toml").read_bytes(), "double", ParamsMode.BAKED)
@@ -180,10 +194,11 @@ def measure(name: str) -> dict:
 def run() -> Section:
     rows = [measure(name) for name in ARMS]
     headers = ("arm", "n", "derive_dynamics", "Coriolis matrix", "ops J", "ops bias", "ops g", "ops C", "ops C q'",
-               "ops J + bias", "derive + generate_files", "gcc -O2 (library)", "C npid_step", "Pinocchio C++ rnea")
+               "ops J + bias", "CasADi ops J + bias", "derive + generate_files", "gcc -O2 (library)", "C npid_step",
+               "Pinocchio C++ rnea")
     cells = [[r["name"], r["n"], seconds(r["dyn"]), seconds(r["C"]), *(r["ops"][k] for k in (
-        "J", "bias", "g", "C", "C q'", "J + bias")), seconds(r["generate"]), seconds(r["cc"]), f"{r['npid']:.0f} ns",
-        f"{r['rnea']:.0f} ns" if r["rnea"] is not None else f"n/a ({r['why']})"] for r in rows]
+        "J", "bias", "g", "C", "C q'", "J + bias", "CasADi J + bias")), seconds(r["generate"]), seconds(r["cc"]),
+        f"{r['npid']:.0f} ns", f"{r['rnea']:.0f} ns" if r["rnea"] is not None else f"n/a ({r['why']})"] for r in rows]
     by = {r["name"]: r for r in rows}
     panda, ur5 = by["panda"], by["ur5"]
     goals = (Goal("Panda dynamics derived in under 0.5 s", panda["dyn"] < 0.5, seconds(panda["dyn"])),
@@ -195,6 +210,8 @@ def run() -> Section:
              Goal("Panda npid_step at least 4x faster than Pinocchio's rnea in the same run",
                   panda["rnea"] is not None and panda["rnea"] >= 4 * panda["npid"],
                   f"{panda['rnea'] / panda['npid']:.1f}x" if panda["rnea"] is not None else panda["why"]))
-    note = ("ops: count_ops after sympy.cse with the arm's values put in (derive.dynamics.identities.count_ops_cse); "
-            "C q' is the RNEA bias without gravity. Times: one run each on the shared machine.")
+    note = ("ops: count_ops after sympy.cse with the arm's values put in, each rational constant one literal as in "
+            "the generated code (derive.dynamics.identities.count_ops_cse); C q' is the RNEA bias without gravity; "
+            "CasADi ops: the instructions of J and the bias as the generated code computes them "
+            "(derive.codegen.casadi_bridge). Times: one run each on the shared machine.")
     return Section(TITLE, (table(headers, cells), note), goals)

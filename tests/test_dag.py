@@ -81,3 +81,15 @@ def test_values_put_in_keep_each_sum_shared_same_values_fewer_operations():
     two = sp.Symbol("m") * (sp.Symbol("x") + sp.Symbol("y"))
     assert dag.xreplace(two, {sp.Symbol("m"): sp.Rational(3, 2)}, keep_sums=True).is_Mul
     assert dag.xreplace(two, {sp.Symbol("m"): sp.Rational(3, 2)}).is_Add
+
+
+def test_operation_count_takes_a_rational_constant_as_one_literal():
+    """count_ops_cse counts what generated code computes: 3/4 x is one
+    multiplication by the literal 0.75 (SymPy's count_ops alone: MUL and DIV),
+    x + 1/3 one addition; shared x y once."""
+    from derive.dynamics.identities import count_ops_cse
+    x, y = sp.symbols("x y")
+    assert sp.count_ops(sp.Rational(3, 4) * x) == 2
+    assert count_ops_cse([sp.Rational(3, 4) * x]) == 1
+    assert count_ops_cse([x + sp.Rational(1, 3)]) == 1
+    assert count_ops_cse([sp.Rational(3, 4) * x * y + 1, 2 * x * y]) == 4

@@ -212,7 +212,7 @@ class ApiBounds:
 
     def sequence(self, form: str, states, xs, dt) -> tuple[np.ndarray, np.ndarray, bool]:
         """Bounds on the last u and on the final state after the steps of
-        ``form`` ('npid' or 'dobc') along the reference trajectory:
+        ``form`` ('npid', 'dobc' or 'mom') along the reference trajectory:
         ``states[k]`` the state before step k, ``xs[k]`` its input. The steps
         are evaluated at once, then the state's bound is carried step by step.
         Returns (u bound, final state bound, a clip decision was in doubt)."""

@@ -73,7 +73,7 @@ CHECKS = {"gains": "gains P, D, I", "mpc": "mpc_step u", "npid_u": "npid_step u"
           "dobc_u": "dobc_step u", "dobc_next": "dobc_step z", "z0": "dobc_init z", "mom0": "mom_init m",
           "mom_u": "mom_step u", "mom_next": "mom_step m", "mom_dhat": "mom_estimate dhat",
           "seq_npid_u": "npid sequence u", "seq_int_e": "npid sequence int_e", "seq_dobc_u": "dobc sequence u",
-          "seq_z": "dobc sequence z"}
+          "seq_z": "dobc sequence z", "seq_mom_u": "mom sequence u", "seq_m": "mom sequence m"}
 IMPLICIT_CHECKS = {"u0": "dobc_init u"}   # checked in --observer implicit builds only
 IMPLICIT_RULE = ("outputs of the implicit observer step (dobc_step u and z, dobc_init u, the dobc sequence): "
                  "norm-wise |got - want| <= 1e-12 max|want| in double, 16 (K + steps) 2^-24 max|want| in float "
@@ -88,9 +88,12 @@ class SequenceVectors:
     int_e: tuple[float, ...]
     dobc_u: tuple[float, ...]
     z: tuple[float, ...]
+    mom_u: tuple[float, ...]
+    m: tuple[float, ...]
     npid_states: np.ndarray     # (steps, n) int_e before each step
     dobc_states: np.ndarray     # (steps, n) z before each step
-    radii: np.ndarray           # (steps, 4, n) radii of the reference's u and state at each step
+    mom_states: np.ndarray      # (steps, n) the momentum observer's m before each step
+    radii: np.ndarray           # (steps, 6, n) radii of the reference's u and state at each step (npid, dobc, mom)
 
 
 def sequence_input(k: int, n: int) -> list[float]:
@@ -147,7 +150,9 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
 
 
 def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> SequenceVectors:
-    """Final u and state after ``steps`` steps of each form from init.
+    """Final u and state after ``steps`` steps of each form from init (npid, dobc,
+    and the momentum observer mom from mom_init, the same forward-Euler step in
+    both observer builds).
 
     Each step starts from the midpoints of the previous state (a ball carried
     through 1000 steps would measure interval arithmetic's overestimation,
@@ -162,25 +167,29 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
         int_e = [0] * n
         z = [v.mid() for v in ref.dobc_init(sequence_input(0, n))]
         held = [v.mid() for v in ref.dobc_held(sequence_input(0, n))] if ref.implicit else None
-        nu = du = None
-        states = np.zeros((2, steps, n))
-        radii = np.zeros((steps, 4, n))
+        m = [v.mid() for v in ref.mom_init(sequence_input(0, n))]
+        nu = du = mu = None
+        states = np.zeros((3, steps, n))
+        radii = np.zeros((steps, 6, n))
         for k in range(steps):
             x = sequence_input(k, n)
-            states[0, k], states[1, k] = _floats(int_e), _floats(z)
+            states[0, k], states[1, k], states[2, k] = _floats(int_e), _floats(z), _floats(m)
             nu, int_e = ref.npid_step(int_e, x, SEQUENCE_DT)
             du, z = (ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit
                      else ref.dobc_step(z, x, SEQUENCE_DT))
-            if not all(certified(v) for v in (nu, int_e, du, z)):
+            mu, m = ref.mom_step(m, x, SEQUENCE_DT)
+            if not all(certified(v) for v in (nu, int_e, du, z, mu, m)):
                 return None
-            radii[k] = [[to_float(v.rad()) for v in vec] for vec in (nu, int_e, du, z)]
-            int_e, z = [v.mid() for v in int_e], [v.mid() for v in z]
+            radii[k] = [[to_float(v.rad()) for v in vec] for vec in (nu, int_e, du, z, mu, m)]
+            int_e, z, m = [v.mid() for v in int_e], [v.mid() for v in z], [v.mid() for v in m]
             held = [v.mid() for v in du] if ref.implicit else None
-        out = SequenceVectors(*map(_floats, (nu, int_e, du, z)), states[0], states[1], radii)
+        out = SequenceVectors(*map(_floats, (nu, int_e, du, z, mu, m)), *states, radii)
         checked = (("npid", (0, 1), (out.npid_u, out.int_e)),) + (
-            () if ref.implicit else (("dobc", (2, 3), (out.dobc_u, out.z)),))   # implicit dobc: IMPLICIT_RULE
+            () if ref.implicit else (("dobc", (2, 3), (out.dobc_u, out.z)),)) + (   # implicit dobc: IMPLICIT_RULE
+            ("mom", (4, 5), (out.mom_u, out.m)),)
+        trajectory = {"npid": out.npid_states, "dobc": out.dobc_states, "mom": out.mom_states}
         for form, (iu, ist), (u, st) in checked:
-            b_u, b_s = bounds.propagate(form, out.npid_states if form == "npid" else out.dobc_states,
+            b_u, b_s = bounds.propagate(form, trajectory[form],
                                         [sequence_input(k, n) for k in range(steps)], SEQUENCE_DT,
                                         radii[:, iu], radii[:, ist])
             if relative(b_u, u) > 10.0 ** -DIGITS or relative(b_s, st) > 10.0 ** -DIGITS:
@@ -237,7 +246,9 @@ def sequence_tolerances(bounds: ApiBounds, seq: SequenceVectors, real: str) -> d
     n, steps = bounds.n, len(seq.npid_states)
     xs = [sequence_input(k, n) for k in range(steps)]
     nu, ns, _ = bounds.sequence("npid", seq.npid_states, xs, SEQUENCE_DT)
-    out = {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real)}
+    mu, ms, _ = bounds.sequence("mom", seq.mom_states, xs, SEQUENCE_DT)   # the same step in both builds
+    out = {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real),
+           "seq_mom_u": tolerance(mu, seq.mom_u, real), "seq_m": tolerance(ms, seq.m, real)}
     if bounds.implicit:
         ops = bounds.operations("observer") + bounds.operations("dobc")
         return {**out, "seq_dobc_u": rule_tolerance(seq.dobc_u, real, ops, steps),
@@ -251,6 +262,7 @@ def accuracy(cs: Sequence[Case], tols: Sequence[dict], seq: SequenceVectors, seq
     fields = OUTPUTS + (("u0",) if cs and cs[0].u0 else ())
     names = {**CHECKS, **IMPLICIT_CHECKS}
     out = {names[f]: max(relative(np.array(t[f]), getattr(c, f)) for c, t in zip(cs, tols)) for f in fields}
-    values = {"seq_npid_u": seq.npid_u, "seq_int_e": seq.int_e, "seq_dobc_u": seq.dobc_u, "seq_z": seq.z}
+    values = {"seq_npid_u": seq.npid_u, "seq_int_e": seq.int_e, "seq_dobc_u": seq.dobc_u, "seq_z": seq.z,
+              "seq_mom_u": seq.mom_u, "seq_m": seq.m}
     out.update({CHECKS[f]: relative(np.array(seq_tols[f]), values[f]) for f in values})
     return out

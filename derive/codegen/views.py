@@ -221,7 +221,7 @@ def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
     cond = max(float(np.linalg.cond(np.array([to_float(a) for a in ref.inertia(c.x[:n])]).reshape(n, n)))
                for c in raw)
     cases = tuple(type(c)(*(lit(getattr(c, f)) for f in c.__dataclass_fields__)) for c in raw)
-    seq_fields = ("npid_u", "int_e", "dobc_u", "z")
+    seq_fields = ("npid_u", "int_e", "dobc_u", "z", "mom_u", "m")
     return SelftestView(
         rule=("element-wise |got - want| <= tol, tol = 2 x the first-order rounding bound of the generated "
               "code at that point (derive.codegen.accuracy) + the rounding of want"

@@ -18,6 +18,8 @@
  *   npid sequence int_e: 1.4e-13
  *   dobc sequence u: 1.9e-12
  *   dobc sequence z: 3.2e-12
+ *   mom sequence u: 2.3e-12
+ *   mom sequence m: 4.6e-13
  * Prints "N passed, N failed"; exits non-zero on any failure. */
 #include <math.h>
 #include <stdio.h>
@@ -142,6 +144,10 @@ static const real tol_npid_u[N] = { 2.38e-13, 2.45e-12 };
 static const real tol_int_e[N] = { 1.4800000000000002e-15, 3.5700000000000003e-16 };
 static const real tol_dobc_u[N] = { 1.7e-12, 5.73e-11 };
 static const real tol_z[N] = { 1.1100000000000001e-13, 5.040000000000001e-13 };
+static const real seq_mom_u[N] = { -4.132973431632667, -47.844229567619436 };
+static const real seq_m[N] = { -0.1362773025363909, -0.041747720866774876 };
+static const real tol_mom_u[N] = { 4.68e-11, 1.09e-10 };
+static const real tol_m[N] = { 6.32e-14, 1.9e-14 };
 
 static int passed, failed;
 
@@ -236,15 +242,19 @@ int main(void)
     sequence_input(0, &in);
     codes |= glasgow_2link_npid_init(&ns, &in);
     codes |= glasgow_2link_dobc_init(&ds, &in);
+    codes |= glasgow_2link_mom_init(&ms, &in);
     for (k = 0; k < 1000; ++k) {
         sequence_input(k, &in);
         codes |= glasgow_2link_npid_step(&ns, &in, dt, u, &clipped);
         if (k == 999) check("npid sequence u", 1000, u, seq_npid_u, tol_npid_u, N);
         codes |= glasgow_2link_dobc_step(&ds, &in, dt, u, &clipped);
         if (k == 999) check("dobc sequence u", 1000, u, seq_dobc_u, tol_dobc_u, N);
+        codes |= glasgow_2link_mom_step(&ms, &in, dt, u, &clipped);
+        if (k == 999) check("mom sequence u", 1000, u, seq_mom_u, tol_mom_u, N);
     }
     check("npid sequence int_e", 1000, ns.int_e, seq_int_e, tol_int_e, N);
     check("dobc sequence z", 1000, ds.z, seq_z, tol_z, N);
+    check("mom sequence m", 1000, ms.m, seq_m, tol_m, N);
     if (codes != GLASGOW_2LINK_OK) {
         ++failed;
         printf("FAIL a step returned an error code\n");

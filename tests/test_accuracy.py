@@ -22,6 +22,7 @@ import derive
 from derive.codegen import testvectors as tv
 from derive.codegen.accuracy import KernelModel
 from derive.codegen.balls import BallFunction, exact_ball, to_float, working_precision
+from derive.codegen.bounds import ApiBounds
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
 from derive.codegen.kernels import KernelSpec, ParamsMode, Port
@@ -272,3 +273,28 @@ def test_first_order_bound_of_a_known_cancellation():
     assert values[0, 0] == 0.0
     assert bound[0, 0] == pytest.approx(2.0 ** -53, rel=1e-12)
     assert abs(values[0, 0] - -(2.0 ** -60)) <= bound[0, 0]
+
+
+def test_sequence_bound_carries_each_step_as_combine_does_with_clips_in_doubt():
+    """ApiBounds.sequence's per-step loop (its shortcut where no clip decision is in doubt) gives
+    _combine's bounds step for step, for npid, dobc and the momentum observer, with voltage limits
+    that clip part of the 1000-step sequence."""
+    d = derive.derive(derive.load_arm())
+    n = d.n
+    ref = Reference(d)
+    seq = tv.sequence(ref, ApiBounds(d, "float", ParamsMode.BAKED))
+    xs = [tv.sequence_input(k, n) for k in range(tv.SEQUENCE_STEPS)]
+    for form, states in (("npid", seq.npid_states), ("dobc", seq.dobc_states), ("mom", seq.mom_states)):
+        raw = ApiBounds(d, "float", ParamsMode.BAKED)._steps(form, states, xs, tv.SEQUENCE_DT)["u_raw"]
+        # 20 % of the steps clip; the limit is one step's own |u|, whose clip decision is then in doubt
+        u_max = np.quantile(np.abs(raw), 0.8, axis=0, method="inverted_cdf")
+        bounds = ApiBounds(d, "float", ParamsMode.BAKED, u_max=u_max)
+        ev = bounds._steps(form, states, xs, tv.SEQUENCE_DT)
+        b, doubt = np.zeros((1, n)), False
+        for k in range(len(xs)):
+            step = bounds._combine(form, ev, slice(k, k + 1), b)
+            b, doubt = step.next_bound, doubt or bool(step.ambiguous[0])
+        b_u, b_s, got_doubt = bounds.sequence(form, states, xs, tv.SEQUENCE_DT)
+        assert ev["limited"].any() and doubt and got_doubt, form
+        np.testing.assert_array_equal(b_u, step.u_bound[0])
+        np.testing.assert_array_equal(b_s, b[0])

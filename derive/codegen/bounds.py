@@ -217,13 +217,23 @@ class ApiBounds:
         are evaluated at once, then the state's bound is carried step by step.
         Returns (u bound, final state bound, a clip decision was in doubt)."""
         ev = self._steps(form, states, xs, dt)
-        b = np.zeros((1, self.n))
+        lim = self.u_max
+        A_raw, A_next, l_raw, l_next = np.abs(ev["A_raw"]), np.abs(ev["A_next"]), ev["l_raw"], ev["l_next"]
+        gap, limited = np.abs(np.abs(ev["u_raw"]) - lim), ev["limited"]
+        b_lim = lim * self.w[CONST]
+        b = np.zeros(self.n)
         doubt = False
-        step = None
+        b_u = b
         for k in range(len(ev["x"])):
-            step = self._combine(form, ev, slice(k, k + 1), b)
-            b, doubt = step.next_bound, doubt or bool(step.ambiguous[0])
-        return step.u_bound[0], b[0], doubt
+            b_raw = A_raw[k] @ b + l_raw[k]
+            if ((lim > 0) & (gap[k] <= b_raw)).any():   # a clip decision in doubt: both branches (_combine)
+                step = self._combine(form, ev, slice(k, k + 1), b[None, :])
+                b_u, b, doubt = step.u_bound[0], step.next_bound[0], True
+                continue
+            b_u = np.where(limited[k], b_lim, b_raw)   # _combine with no decision in doubt
+            b_step = A_next[k] @ b + l_next[k]
+            b = np.where(limited[k], b, b_step) if form == "npid" else b_step
+        return b_u, b, doubt
 
 
     def propagate(self, form: str, states, xs, dt, r_u, r_s) -> tuple[np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from derive.codegen.casadi_bridge import to_sx
+from derive.dynamics.sx import to_sx
 from derive.dynamics.dag import Memo
 from derive.dynamics.equations import Dynamics, derive_dynamics, reference_mismatch
 from derive.dynamics.program import dag_xreplace

@@ -33,7 +33,8 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 
-from derive.codegen.casadi_bridge import _number, to_function
+from derive.codegen.casadi_bridge import to_function
+from derive.dynamics.sx import _number
 from derive.codegen.kernels import KernelSpec
 from derive.errors import DerivationError
 

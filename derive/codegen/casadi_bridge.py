@@ -11,9 +11,7 @@ import sympy as sp
 
 from derive.codegen.kernels import KernelSpec
 from derive.dynamics.dag import Memo
-from derive.dynamics.sx import _number, to_sx
-
-__all__ = ["_number", "to_function", "to_sx"]
+from derive.dynamics.sx import to_sx
 
 
 def to_function(spec: KernelSpec, constants: dict | None = None) -> ca.Function:

@@ -25,6 +25,28 @@ from derive.dynamics.sx import to_sx
 from derive.dynamics.trigpoly import TrigRing, constant_angles
 
 FULL_TURN = 2.0 * math.pi
+ROUNDING = 1e-12   # relative rounding of the discrete Fourier transform's coefficients
+
+
+def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of |d^2 J/dq_j dq_k| and |d^3 J/dq_i dq_j dq_k| (m x m x n x n, m x m x m x n x n)
+    valid for every q, from J's Fourier coefficients C_f (coef: K x n x n) at integer
+    frequencies f (F: K x m): sum_f |C_f| |f_j f_k| and sum_f |C_f| |f_i f_j f_k|, each |C_f|
+    inflated by ROUNDING times the sum of all of them (the transform's rounding)."""
+    m, n = F.shape[1], coef.shape[1]
+    mag = np.abs(coef)
+    mag = mag + (ROUNDING * mag.sum(axis=0, keepdims=True) + 1e-300)
+    absF = np.abs(F).astype(float)
+    second, third = np.zeros((m, m, n, n)), np.zeros((m, m, m, n, n))
+    for j in range(m):
+        for k in range(j, m):
+            w2 = absF[:, j] * absF[:, k]
+            second[j, k] = second[k, j] = np.tensordot(w2, mag, axes=(0, 0))
+            for i in range(k, m):
+                t = np.tensordot(w2 * absF[:, i], mag, axes=(0, 0))
+                for a_, b_, c_ in set(itertools.permutations((j, k, i))):
+                    third[a_, b_, c_] = t
+    return second, third
 
 
 @dataclass(frozen=True)
@@ -197,18 +219,7 @@ class InertiaModel:
         freqs = [np.fft.fftfreq(L, 1.0 / L) for L in sizes]   # 0, 1, .., d, -d, .., -1
         F = np.stack(np.meshgrid(*freqs, indexing="ij"), axis=-1)   # sizes x m
         self.fourier = (coef.reshape(-1, n, n), F.reshape(-1, m).astype(int))
-        mag = np.abs(coef)
-        mag = mag + (1e-12 * mag.sum(axis=tuple(range(m)), keepdims=True) + 1e-300)   # rounding of the transform
-        absF = np.abs(F)
-        axes_ = tuple(range(m))
-        for j in range(m):
-            for k in range(j, m):
-                w2 = absF[..., j] * absF[..., k]
-                self.second[j, k] = self.second[k, j] = np.tensordot(w2, mag, axes=(axes_, axes_))
-                for i in range(k, m):
-                    third = np.tensordot(w2 * absF[..., i], mag, axes=(axes_, axes_))
-                    for a_, b_, c_ in set(itertools.permutations((j, k, i))):
-                        self.third[a_, b_, c_] = third
+        self.second, self.third = fourier_derivative_bounds(*self.fourier)
 
     def _coefficient_bounds(self, J: sp.Matrix) -> None:
         """Bounds of the 2nd and 3rd derivatives as sums of absolute coefficients (some dep a

@@ -33,10 +33,9 @@ import itertools
 
 import numpy as np
 
-from derive.control.inertia import InertiaModel
+from derive.control.inertia import ROUNDING, InertiaModel, fourier_derivative_bounds
 
 MAX_INNER = 3        # angles decided by branch and bound
-ROUNDING = 1e-12     # relative rounding of the transform's coefficients (as in InertiaModel)
 
 
 def _abs_matrix(X: np.ndarray) -> np.ndarray:
@@ -75,17 +74,7 @@ class SplitModel:
         self._rest_abs = 2.0 * (_abs_matrix(coef[rep].real) + _abs_matrix(coef[rep].imag))   # P x n x n
         norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))                       # Frobenius of every C_f
         self._all_F, self._all_norm = F.astype(float), norms
-        mag = np.abs(coef[keep])
-        mag = mag + (ROUNDING * mag.sum(axis=0, keepdims=True) + 1e-300)
-        absF = np.abs(self._F)
-        m = self.m
-        self.second = np.zeros((m, m, self.n, self.n))
-        self.third = np.zeros((m, m, m, self.n, self.n))
-        for j, k in itertools.product(range(m), repeat=2):
-            w2 = absF[:, j] * absF[:, k]
-            self.second[j, k] = np.tensordot(w2, mag, axes=(0, 0))
-            for i in range(m):
-                self.third[i, j, k] = np.tensordot(w2 * absF[:, i], mag, axes=(0, 0))
+        self.second, self.third = fourier_derivative_bounds(coef[keep], F[keep][:, list(self.inner)])
 
     # -- J_A and its derivatives at inner points ---------------------------------------------
     def _weighted(self, q: np.ndarray, weights: list[np.ndarray]) -> np.ndarray:

@@ -18,6 +18,7 @@ from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.momentum import Momentum, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
+from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
 from derive.model.spec import Arm, momentum_parameters
@@ -72,6 +73,7 @@ class Derivation:
     synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
     momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
     u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
+    formal: "Derivation | None" = None  # the same over placeholders J, G, g, C (derive.control.opaque)
 
     @property
     def n(self) -> int:
@@ -117,17 +119,22 @@ def derive(arm: Arm) -> Derivation:
     normal double (``derive.control.ranges``: e.g. T2 = 1e-170 makes k1 = 3e339)."""
     dyn = derive_dynamics(arm)
     ctl = arm.controller
-    mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
+    # the control stages are algebra over J, G, g, C: built over placeholders (milliseconds),
+    # then the dynamics put in (derive.control.opaque); the placeholder forms are what
+    # derive check decides the control obligations on
+    odyn = OpaqueDynamics(dyn)
+    mpc_f = derive_mpc(odyn, ctl.T1, ctl.T2, ctl.C)
     synthesis = None
     if ctl.w_auto:
         synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
-        obs = derive_observer(dyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
-                              W_values=None if chen else synthesis.W)
+        obs_f = derive_observer(odyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
+                                W_values=None if chen else synthesis.W)
     else:
-        obs = derive_observer(dyn, w_values=ctl.w, W_values=ctl.W)
-    npid = derive_npid(dyn, mpc, obs)
-    mom = derive_momentum(dyn)
+        obs_f = derive_observer(odyn, w_values=ctl.w, W_values=ctl.W)
+    npid_f = derive_npid(odyn, mpc_f, obs_f)
+    mom_f = derive_momentum(odyn)
+    mpc, obs, npid, mom = (odyn.inline_stage(x) for x in (mpc_f, obs_f, npid_f, mom_f))
     mom_values = tuple((p.symbol, p.rational) for p in momentum_parameters(ctl))
     values = dyn.values + mpc.values + obs.values + mom_values
     rep = dict(values)
@@ -152,6 +159,20 @@ def derive(arm: Arm) -> Derivation:
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
-        u_mom=num(mpc.u_star - mom.dhat))
+        u_mom=num(mpc.u_star - mom.dhat), formal=_formal(arm, odyn, mpc_f, obs_f, npid_f, mom_f, values))
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
     return d
+
+
+def _formal(arm: Arm, odyn: OpaqueDynamics, mpc: Mpc, obs: Observer, npid: Npid, mom: Momentum,
+            values: tuple) -> "Derivation":
+    """The Derivation over placeholders (derive.control.opaque): J, G, g, C are symbol
+    matrices, every law the same algebra over them, the arm's values put in."""
+    num = Substitution(dict(values), keep_sums=True)
+    return Derivation(
+        arm=arm, dynamics=odyn, mpc=mpc, observer=obs, npid=npid, values=values, theta=odyn.sym.theta,
+        dtheta=odyn.sym.dtheta, J=odyn.J, G=odyn.G, B=num(odyn.B), C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2),
+        W=num(obs.W), L=num(obs.L), P=num(npid.P), D=num(npid.D), I=num(npid.I), N=num(npid.N),
+        dhat0=num(npid.dhat0), u_star=num(mpc.u_star), u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid),
+        dhat=num(obs.dhat), lumped=None, speed_bound=None, warnings=(), momentum=mom,
+        u_mom=num(mpc.u_star - mom.dhat))

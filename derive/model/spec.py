@@ -54,6 +54,7 @@ from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.dh import dh_chain
 from derive.model.singular import unmoved_joint
+from derive.model.rigid import rational_unit
 from derive.model.urdf import urdf_chain
 
 __all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
@@ -209,9 +210,10 @@ def gravity_parameter(g: Fraction) -> Parameter:
 
 
 def unit_direction(direction: tuple[Fraction, ...]) -> sp.ImmutableMatrix:
-    """The 3 x 1 unit vector of a direction given by 2 (planar: z = 0) or 3 exact numbers."""
+    """The 3 x 1 unit vector of a direction given by 2 (planar: z = 0) or 3 exact numbers (rational:
+    derive.model.rigid.rational_unit)."""
     v = sp.Matrix([sp.Rational(x.numerator, x.denominator) for x in direction] + [0] * (3 - len(direction)))
-    return sp.ImmutableMatrix(v / sp.sqrt((v.T * v)[0, 0]))
+    return rational_unit(v)
 
 
 @functools.lru_cache(maxsize=64)

@@ -80,6 +80,14 @@ class Derivation:
         return len(self.theta)
 
     @property
+    def formal_view(self) -> "Derivation | None":
+        """The Derivation over placeholders this one was inlined from (derive.control.opaque),
+        or None: a copy made with dataclasses.replace (a field changed) has none, since its
+        matrices are no longer the inlining of the formal ones."""
+        mark = self.__dict__.get("_formal_of")
+        return mark if mark is not None and mark is self.formal else None
+
+    @property
     def k_formulas(self) -> tuple[sp.Expr, sp.Expr]:
         """k1, k2 in the symbols T1, T2 (eq. 16-18)."""
         return gains()
@@ -160,6 +168,9 @@ def derive(arm: Arm) -> Derivation:
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
         u_mom=num(mpc.u_star - mom.dhat), formal=_formal(arm, odyn, mpc_f, obs_f, npid_f, mom_f, values))
+    # the pair is marked: only this Derivation, not a copy with fields replaced, is the
+    # inlining of its formal one (derive.proofs.project.formal_first relies on it)
+    object.__setattr__(d, "_formal_of", d.formal)
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
     return d
 

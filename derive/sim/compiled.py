@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from derive.codegen.forms import FORMS
+from derive.codegen.forms import FORMS, init_takes_dt
 from derive.errors import DeriveError
 
 
@@ -36,6 +36,7 @@ class LoopForm:
     name: str
     state_type: str
     state_field: str
+    init_dt: bool = False   # its init takes dt (derive.codegen.forms.init_takes_dt)
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,8 @@ def loop_sources(d, observer: str = "explicit") -> dict[str, str]:
     v = arm_view(d, "double", ParamsMode.RUNTIME, observer=observer)
     out = {f"{a}.h": render("c/arm.h.jinja", v=v), f"{a}.c": render("c/arm.c.jinja", v=v),
            f"{a}_kernels.h": render("c/kernels.h.jinja", v=v), f"{a}_kernels.c": render("c/kernels.c.jinja", v=v)}
-    forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "")
+    forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "",
+                           init_takes_dt(f, observer))
                   for f in FORMS.values())  # every form of the registry derive.codegen.forms
     out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
     return out

@@ -223,7 +223,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
             inp = np.concatenate([q_meas[row], dq_filtered[row], yd, dyd, ddyd])
             try:
                 if k == 0:
-                    ctl.init(inp)
+                    ctl.init(inp, dt)
                     if name == "dobc_zero_init":  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
                         ctl.state = list(-(W @ dq_filtered[row]))
                 if form == "dobc":  # the estimate this step uses (eq. 22)

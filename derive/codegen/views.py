@@ -75,6 +75,7 @@ class ArmView:
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
     sample_notes: tuple[str, ...] = ()          # the largest sample time of each form (derive generate)
     implicit: bool = False                      # --observer implicit: the backward-Euler observer step
+    wrap_notes: tuple[str, ...] = ()            # comment lines: the outputs whose error is wrapped (continuous joints)
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -143,7 +144,20 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),
-        implicit=observer == "implicit")
+        implicit=observer == "implicit",
+        wrap_notes=tuple(textwrap.wrap(comment_text(wrap_note(d)), 80)) if d.wrapped else ())
+
+
+def wrap_note(d: Derivation) -> str:
+    """The sentence of the generated headers on the continuous joints' wrapped error (derive.control.wrap)."""
+    joints = d.dynamics.chain.joints
+    cont = [f"{j + 1} ({joints[j].name})" for j in range(d.n) if joints[j].type.value == "continuous"]
+    outs = ", ".join(str(i + 1) for i in d.wrapped)
+    return (f"Continuous joint{'s' if len(cont) > 1 else ''} {', '.join(cont)}: the tracking error e = yd - C theta of output(s) {outs} is "
+            "wrapped to (-pi, pi], e = x + 2 pi floor((pi - x) / (2 pi)) with x = yd - C theta, in every step "
+            "(u*, the initial estimate, the integral of e), so a continuous joint reported at theta or at "
+            "theta - 2 pi (in (-pi, pi], say, as encoders do) gives the same command; e' = yd' - C theta' is not "
+            "wrapped, and the arm is driven the short way round to yd.")
 
 
 def observer_notes(d: Derivation) -> tuple[str, ...]:

@@ -20,6 +20,7 @@ from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
+from derive.control.wrap import wrap, wrapped_outputs
 from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
 
@@ -72,6 +73,7 @@ class Derivation:
     synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
     momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
     u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
+    wrapped: tuple[int, ...] = ()        # outputs whose error is wrapped to (-pi, pi] (derive.control.wrap)
 
     @property
     def n(self) -> int:
@@ -99,10 +101,13 @@ class Derivation:
 
     @property
     def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
-        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each)."""
+        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each);
+        the outputs of ``wrapped`` (those a continuous joint moves) have e wrapped to (-pi, pi]
+        (derive.control.wrap), so theta and theta - 2 pi give the same e."""
         s = self.dynamics.sym
-        return (sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta),
-                sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta))
+        e = sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta)
+        e = sp.Matrix([wrap(e[i]) if i in self.wrapped else e[i] for i in range(e.rows)])
+        return e, sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta)
 
     def measured(self, expr):
         """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
@@ -118,6 +123,7 @@ def derive(arm: Arm) -> Derivation:
     dyn = derive_dynamics(arm)
     ctl = arm.controller
     mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
+    wrapped = wrapped_outputs(mpc.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
         synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
@@ -152,6 +158,6 @@ def derive(arm: Arm) -> Derivation:
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
-        u_mom=num(mpc.u_star - mom.dhat))
+        u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped)
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
     return d

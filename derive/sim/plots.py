@@ -62,14 +62,15 @@ def link_figure(traces: list[Trace], i: int) -> bytes:
 
 
 def error_figure(traces: list[Trace]) -> bytes:
-    """Tracking error y_d - theta of every controller, per link (Figures 7-8)."""
+    """Tracking error y_d - C theta of every controller, per output (Figures 7-8; a continuous joint's
+    wrapped to (-pi, pi], as the controllers take it)."""
     n = traces[0].theta.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
     for i in range(n):
         ax = axes[i, 0]
         for tr in traces:
             color, ls = STYLE.get(tr.name, ("k", "-"))
-            e = np.degrees(tr.yd[:, i] - tr.theta[:, i])
+            e = np.degrees(tr.error[:, i])
             ax.plot(tr.t, e, color=color, ls=ls, lw=1, label=_label(tr))
             _mark_failure(ax, tr, e, color)
         ax.set_ylabel(f"e{i + 1} [deg]")

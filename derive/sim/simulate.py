@@ -27,6 +27,7 @@ import numpy as np
 
 from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
+from derive.control.wrap import wrap_numeric
 from derive.dynamics.program import lambdify
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
@@ -73,6 +74,13 @@ class Trace:
     dhat: np.ndarray | None
     saturated: np.ndarray
     failure: Failure | None = None
+    e: np.ndarray | None = None   # the tracking error yd - C theta (k x n), wrapped as the controllers wrap it
+
+    @property
+    def error(self) -> np.ndarray:
+        """e = yd - C theta per sample (k x n): a continuous joint's output wrapped to (-pi, pi]
+        (derive.control.wrap), as the generated controllers compute it."""
+        return self.e if self.e is not None else self.yd - self.theta
 
 
 def pulse(t: float, start: float, period: float, amplitude: float) -> float:
@@ -146,12 +154,22 @@ def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inp
                    joint=joint, cause="; ".join(causes), inputs=tuple(float(v) for v in x))
 
 
+def tracking_error(d: Derivation, yd: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """e = yd - C theta (eq. 20) per sample (k x n), the outputs ``d.wrapped`` (moved by a continuous
+    joint) wrapped to (-pi, pi] as the generated controllers wrap them (derive.control.wrap)."""
+    e = yd - theta @ np.array(d.C.tolist(), dtype=float).T
+    for i in d.wrapped:
+        e[:, i] = wrap_numeric(e[:, i])
+    return e
+
+
 def _trace(name: str, s: SimSettings, plant: TruePlant | Plant, form: str, theta, dtheta, yd, u, dhat,
-           failure: Failure | None) -> Trace:
+           failure: Failure | None, d: Derivation) -> Trace:
     u_max = np.asarray(plant.u_max, dtype=float)
     t = np.arange(len(theta)) * s.sample_time
     sat = np.abs(u) >= u_max * (1 - 1e-12)
-    return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure)
+    return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure,
+                 tracking_error(d, yd, theta))
 
 
 ESTIMATES = ("dobc", "mom")   # the forms whose traces carry the disturbance estimate each step used
@@ -245,7 +263,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
             x, f = _rk4(plant, x, f, u, r, h)
     bar.close()
     return {name: _trace(name, s, plant, form, *(out[key][j, :ended[j]] for key in ("theta", "dtheta", "yd", "u",
-                                                                                    "dhat")), failures[j])
+                                                                                    "dhat")), failures[j], d)
             for j, (name, form, _) in enumerate(runs)}
 
 
@@ -270,7 +288,7 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
         measured = raw.theta + (nq[:len(raw.theta)] if nq is not None else 0.0)
         dhat = momentum_estimate(d)(measured, raw.filtered, raw.state)
     failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None
-    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure)
+    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure, d)
 
 
 def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarray, h: float):
@@ -295,7 +313,7 @@ def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float | Undefined]]:
     the last 20% of each half-period of the pulse train (the settled parts); a figure
     that has no value (no settled sample in a short run, a non-finite trace) is an
     :class:`~derive.jsonio.Undefined` with the reason, never NaN."""
-    e = trace.yd - trace.theta
+    e = trace.error
     out = []
     half = s.pulse_period / 2
     end = float(trace.t[-1]) if len(trace.t) else 0.0

@@ -18,6 +18,8 @@ from derive.cli.notation import Names, TexPrinter, TextPrinter, subscript, width
 from derive.control.pipeline import Derivation
 from derive.dynamics.identities import fourier_form
 from derive.dynamics.trigpoly import constant_angles
+from derive.model.actuators import input_word, units_text
+from derive.model.spec import gain_units_text
 
 WIDTH = 100
 DIGITS = 6
@@ -40,6 +42,13 @@ class Entry:
     formula: bool = False      # shown exact and as it is (k1, k2 in T1, T2)
 
 
+def _b_what(d: Derivation) -> str:
+    """What B maps: joint torque per volt (DC motors), per motor torque (torque actuation: the gear ratio)."""
+    per = {"V": "volt", "N m": "N m of motor torque (the gear ratio)", "N": "N of motor force (the gear ratio)"}
+    units = list(dict.fromkeys(d.arm.input_units))
+    return "input matrix, joint torque per " + (per[units[0]] if len(units) == 1 else "unit of u (V or N m per motor)")
+
+
 def entries(d: Derivation) -> list[Entry]:
     """Every quantity shown, in reading order."""
     k1, k2 = (sp.factor(k) for k in d.k_formulas)
@@ -48,7 +57,7 @@ def entries(d: Derivation) -> list[Entry]:
         E("J", "J(θ)", "J(theta)", r"J(\theta)", ("J", "J", "J"), "inertia matrix", "eq. 12, a6", d.J),
         E("G", "G(θ, θ̇)", "G(theta, dtheta)", r"G(\theta, \dot{\theta})", ("G", "G", "G"),
           "Coriolis, centrifugal, gravity and damping torques", "eq. 12", d.G),
-        E("B", "B", "B", "B", ("B", "B", "B"), "input matrix, torque per volt", "eq. 12", d.B),
+        E("B", "B", "B", "B", ("B", "B", "B"), _b_what(d), "eq. 12", d.B),
         E("C", "C", "C", "C", ("C", "C", "C"), "output matrix, y = C theta", "eq. 13", d.C),
         E("k1", "k1(T₁, T₂)", "k1(T1, T2)", "k_1(T_1, T_2)", ("k1", "k1", "k_1"), "gain formula", "eq. 16, 18",
           k1, formula=True),
@@ -56,12 +65,12 @@ def entries(d: Derivation) -> list[Entry]:
           k2, formula=True),
         E("K1", "K1", "K1", "K_1", ("K1", "K1", "K_1"), "predictive gain on e", "eq. 16", d.K1),
         E("K2", "K2", "K2", "K_2", ("K2", "K2", "K_2"), "predictive gain on de/dt", "eq. 17", d.K2),
-        E("W", "W", "W", "W", ("W", "W", "W"), "observer gain", "eq. 25", d.W),
+        E("W", "W", "W", "W", ("W", "W", "W"), f"observer gain [{gain_units_text(d.arm.prismatic)}]", "eq. 25", d.W),
         E("p", "p(θ̇)", "p(dtheta)", r"p(\dot{\theta})", ("p", "p", "p"), "observer function", "eq. 23",
           d.numeric(d.observer.p)),
     ]
     if d.n <= 2:
-        out.append(E("L", "L(θ)", "L(theta)", r"L(\theta)", ("L", "L", "L"), "observer gain W J^-1", "eq. 24", d.L))
+        out.append(E("L", "L(θ)", "L(theta)", r"L(\theta)", ("L", "L", "L"), "observer gain W J^-1 [1/s]", "eq. 24", d.L))
     out += [
         E("P", "P(θ)", "P(theta)", r"P(\theta)", ("P", "P", "P"), "proportional gain", "eq. 35", d.P),
         E("D", "D(θ)", "D(theta)", r"D(\theta)", ("D", "D", "D"), "derivative gain", "eq. 36", d.D),
@@ -161,8 +170,10 @@ def render_text(d: Derivation, exact: bool = False, unicode: bool = True, limit:
     theta, dtheta = ("θ", "θ̇") if unicode else ("theta", "dtheta")
     lines = [f"arm {arm.name}: {arm.n} joint{'s' if arm.n > 1 else ''}, {arm.description}".rstrip(", "),
              f"source: {arm.source}",
-             f"notation: {theta} joint angles [rad], {dtheta} rates [rad/s], u voltages [V], "
-             f"e = yd - C {theta} (eq. 20)",
+             f"notation: {theta} joint angles [rad], {dtheta} rates [rad/s], u {input_word(arm.input_units)}s "
+             f"[{units_text(arm.input_units)}], e = yd - C {theta} (eq. 20)"
+             + (f", wrapped to (-pi, pi] for output{'s' if len(d.wrapped) > 1 else ''} "
+                f"{', '.join(str(i + 1) for i in d.wrapped)} (continuous joints)" if d.wrapped else ""),
              "numbers: exact rationals" if exact else f"numbers: {DIGITS} significant digits (--exact for rationals)",
              ""]
     for e in entries(d):

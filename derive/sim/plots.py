@@ -39,8 +39,8 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def link_figure(traces: list[Trace], i: int) -> bytes:
-    """Link i: u [V], theta-dot [deg/s], theta and y_d [deg] (Figures 5-6)."""
+def link_figure(traces: list[Trace], i: int, unit: str = "V") -> bytes:
+    """Link i: u [V, or ``unit``: N m in torque mode], theta-dot [deg/s], theta and y_d [deg] (Figures 5-6)."""
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for tr in traces:
         color, ls = STYLE.get(tr.name, ("k", "-"))
@@ -50,7 +50,7 @@ def link_figure(traces: list[Trace], i: int) -> bytes:
         for ax, values in zip(axes, (tr.u[:, i], np.degrees(tr.dtheta[:, i]), np.degrees(tr.theta[:, i]))):
             _mark_failure(ax, tr, values, color)
     axes[2].plot(traces[0].t, np.degrees(traces[0].yd[:, i]), color="k", lw=0.8, ls="-.", label="y_d")
-    for ax, label in zip(axes, ("u [V]", "velocity [deg/s]", "position [deg]")):
+    for ax, label in zip(axes, (f"u [{unit}]", "velocity [deg/s]", "position [deg]")):
         ax.set_ylabel(label)
         ax.grid(True, lw=0.3)
     axes[0].legend(loc="upper right", fontsize=8)

@@ -308,8 +308,8 @@ def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarra
 
 
 def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float | Undefined]]:
-    """Per link: rms_error, max_error, steady_state_error [rad], control_effort
-    (RMS voltage) [V], saturated_time [s]. steady_state_error is the mean |e| over
+    """Per link: rms_error, max_error, steady_state_error [rad] of e = yd - C theta (Trace.error),
+    control_effort (RMS of u) [V, or N m in torque mode], saturated_time [s]. steady_state_error is the mean |e| over
     the last 20% of each half-period of the pulse train (the settled parts); a figure
     that has no value (no settled sample in a short run, a non-finite trace) is an
     :class:`~derive.jsonio.Undefined` with the reason, never NaN."""

@@ -242,8 +242,9 @@ def add_arguments(parser) -> None:
     add_arm_argument(parser)
     parser.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
     parser.add_argument("--exact", action="store_true", help="exact rationals instead of 6 digits")
-    parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...",
-                        help="print J, G, gravity, B, the free acceleration and the gains at this pose")
+    parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...[,e=...,de=...]",
+                        help="print J, G, gravity, B, the free acceleration and the gains at this pose, and the "
+                             "initial estimate dhat(0) for the tracking error e(0) and its rate e'(0) (default 0)")
 
 
 def run(args) -> int:

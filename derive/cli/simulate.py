@@ -3,6 +3,7 @@ plots and a metrics table (Markdown; JSON with --json)."""
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -31,6 +32,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, help="override simulation.duration [s]")
     parser.add_argument("--observer", choices=("explicit", "implicit"), default="explicit",
                         help="the controllers' observer step, as derive generate --observer (default explicit)")
+    parser.add_argument("--reference-from-pose", action="store_true",
+                        help="start the reference at the arm's initial pose, y_d(0) = C theta(0), the pulse train "
+                             "added to it (as [simulation] reference_start = \"measured\"): e(0) = 0, so the "
+                             "initial estimate dhat(0) is 0, a smooth start")
     parser.add_argument("--force", action="store_true",
                         help="simulate even when the sample time is above a form's limit (derive check prints it)")
     parser.add_argument("--voltage-limits", "--input-limits", dest="voltage_limits", default=None,
@@ -103,11 +108,14 @@ def metrics_results(traces, settings, unit: str = "V") -> dict:
 
 
 def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = False,
-                   duration: float | None = None, observer: str = "explicit") -> tuple[dict[str, bytes], dict]:
+                   duration: float | None = None, observer: str = "explicit",
+                   warn=None) -> tuple[dict[str, bytes], dict]:
     """Run the controllers; return {file name: bytes} (PNG, metrics.md) and the metrics.
 
     A controller whose run fails keeps its samples up to the failure (plotted and
-    marked), gets no metrics and a ``failed`` entry; the others are unaffected."""
+    marked), gets no metrics and a ``failed`` entry; the others are unaffected.
+    ``warn(text)``, when given, receives the start's warnings before anything runs
+    (an initial estimate dhat(0) above an input limit: derive.sim.start)."""
     from dataclasses import replace
 
     from derive.control.pipeline import derive
@@ -117,6 +125,11 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
 
     settings = arm.simulation if duration is None else replace(arm.simulation, duration=duration)
     d = derive(arm)
+    if warn is not None and {"dobc", "npid", "npid_unprotected"} & set(names):
+        from derive.sim.start import start_warnings
+
+        for text in start_warnings(d, settings, observer):
+            warn(text)
     plant = true_plant(d, settings)
     if backend_kind == "compiled":
         from derive.sim.compiled import build
@@ -164,6 +177,30 @@ def with_voltage_limits(arm, text: str):
     return replace(arm, motors=motors)
 
 
+def _json_inside(json_path: Path | None, out: Path) -> str | None:
+    """The path of ``--json`` relative to ``--out`` (POSIX) when it lies inside it, else None."""
+    if json_path is None:
+        return None
+    try:
+        rel = json_path.resolve().relative_to(out.resolve())
+    except ValueError:
+        return None
+    return rel.as_posix() if rel.parts else None
+
+
+def _json_folder_check(json_path: Path) -> None:
+    """``--json`` outside ``--out``: its folder exists or can be made (its nearest existing
+    ancestor is a folder); one DeriveError otherwise, before anything is simulated."""
+    folder = json_path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise DeriveError(f"--json {json_path}: expected a file in a folder, got {folder}, which is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise DeriveError(f"--json {json_path}: expected a folder derive may write in, got {folder}, "
+                          "which is not writable")
+
+
 def run(args) -> int:
     from derive.codegen.emit import write_tree
     from derive.cli import load_cli_arm
@@ -176,12 +213,21 @@ def run(args) -> int:
     if args.duration is not None and not (0 < args.duration < 1e6):
         raise DeriveError(f"--duration: expected a number of seconds > 0, got {args.duration}")
     json_path = Path(args.json) if args.json else None
-    if json_path is not None and not json_path.parent.is_dir():  # fail before minutes of simulation
-        raise DeriveError(f"--json {json_path}: expected a file in an existing folder, "
-                          f"got a missing folder {json_path.parent}")
     arm = load_cli_arm(args)
+    out = Path(args.out) if args.out else Path("sim") / arm.name
+    inside = _json_inside(json_path, out)   # written with the folder's files, listed in its MANIFEST.json
+    if json_path is not None and inside is None:   # fail before minutes of simulation
+        _json_folder_check(json_path)
+    own = {"MANIFEST.json", "metrics.md", "tracking_error.png", *(f"link{i + 1}.png" for i in range(arm.n))}
+    if inside in own:
+        raise DeriveError(f"--json {json_path}: expected a file name other than derive simulate's own "
+                          f"{inside} in --out {out}")
     if args.voltage_limits is not None:
         arm = with_voltage_limits(arm, args.voltage_limits)
+    if args.reference_from_pose:
+        from dataclasses import replace
+
+        arm = replace(arm, simulation=replace(arm.simulation, reference_start="measured"))
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
         from derive.control.pipeline import derive
         from derive.control.sampling import too_slow
@@ -194,15 +240,19 @@ def run(args) -> int:
                               + ": the controller would diverge; lower sample_time, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration,
-                                    observer=args.observer)
+                                    observer=args.observer,
+                                    warn=lambda text: print(f"derive: warning: {text}", file=sys.stderr))
     wall = time.perf_counter() - start
-    out = Path(args.out) if args.out else Path("sim") / arm.name
+    texts = {k: v.decode() for k, v in files.items() if k.endswith(".md")}
+    if inside is not None:
+        texts[inside] = metrics_json(results)
     write_tree(out, {"MANIFEST.json": jsonio.dumps({"_note": "generated by derive simulate; do not edit",
-                                                    "files": sorted(files)}, sort_keys=False),
-                     **{k: v.decode() for k, v in files.items() if k.endswith(".md")}},
+                                                    "files": sorted([*files, *([inside] if inside else [])])},
+                                                   sort_keys=False), **texts},
                binary={k: v for k, v in files.items() if k.endswith(".png")})
-    if json_path is not None:
+    if json_path is not None and inside is None:
         try:
+            json_path.parent.mkdir(parents=True, exist_ok=True)
             json_path.write_text(metrics_json(results))
         except OSError as exc:
             raise DeriveError(f"--json {json_path}: cannot write ({exc.strerror or exc})") from None

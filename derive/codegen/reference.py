@@ -164,6 +164,19 @@ class Reference:
         x0 = self._solve_implicit(J, Jxi, dt)
         return [sum((ball(self._W[i, j]) * x0[j] for j in range(n)), arb(0)) for i in range(n)]
 
+    def initial_estimate(self, x, dt=None) -> list[arb]:
+        """dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)) at input x (derive.control.npid; e, e' from x as the
+        controller takes them, wrapped for continuous joints); with ``dt``, the implicit step's W_dt =
+        W (J + dt W)^-1 J in place of W (J at x's theta)."""
+        n = self.n
+        with working_precision(self.prec):
+            if dt is None:
+                xi = self._xi(*x, *([0] * n))
+                Wxi = [sum((ball(self._W[i, j]) * xi[j] for j in range(n)), arb(0)) for i in range(n)]
+            else:
+                Wxi = self._W_x0(x, dt)
+            return [-ball(1 / self._d.B[i, i]) * Wxi[i] for i in range(n)]
+
     def dobc_held(self, x, dt) -> list[arb]:
         """The implicit step's initial held voltage B^-1 (G - W theta' - z0) = B^-1 (G + W x0)."""
         n = self.n

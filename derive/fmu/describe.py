@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from xml.sax.saxutils import escape
 
-from derive.codegen.forms import Form
+from derive.codegen.forms import Form, init_takes_dt
 from derive.codegen.views import ArmView
 from derive.control.pipeline import Derivation
 from derive.fmu.units import Unit, fmi_unit
@@ -88,6 +88,8 @@ class FmuView:
     step_size: str
     tool: str
     sources: tuple[str, ...]    # C files of sources/, compiled together
+    init_dt: bool = False       # the form's init takes dt (the implicit DOBC: derive.codegen.forms.init_takes_dt)
+    estimate_after: bool = False   # the estimate a step applied is read after it (the implicit DOBC moves z first)
 
 
 def mask_type(v: ArmView) -> str:
@@ -110,17 +112,19 @@ def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: 
     outputs = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
     units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name)) if fmi == 3 else units
     model = f"{v.arm}_{f.name}"
+    step = " with the implicit (backward-Euler) observer step" if v.implicit else ""
     return FmuView(
         fmi=fmi, arm=v.arm, ARM=v.ARM, n=v.n, real=v.real,
         real_type="Float32" if v.real == "float" else "Float64", runtime=v.runtime, model=model,
-        model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}), of arm {v.arm}: "
+        model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}){step}, of arm {v.arm}: "
                                                f"{v.description}"),
         token=token, form=f, variables=found, outputs=outputs, initial_unknowns=(), mask=mask_type(v),
         units=units, errors=errors(v),
         ok=f"{v.ARM}_OK", includes=(f"{v.arm}.h",), core="fmu/controller.c.jinja",
-        summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations})",
+        summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations}){step}",
         start_time="0.0", stop_time=repr(float(duration)), step_size=repr(float(sample_time)), tool=tool,
-        sources=sources)
+        sources=sources, init_dt=init_takes_dt(f, "implicit" if v.implicit else "explicit"),
+        estimate_after=v.implicit and f.name == "dobc")
 
 
 def _start(value: float) -> str:
@@ -272,6 +276,7 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
     from derive.fmu.plant import amplitude_rad, plant_kernels, plant_parameters
+    from derive.sim.start import reference_offset
 
     arm = d.arm
     s = arm.simulation
@@ -300,6 +305,9 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
         ("u_max", arm.input_units, f"the amplifier's {word} limit of motor {{i}}, 0 = none ({limit_field})", limits),
         ("start", "s", "when the pulse train of link {i} starts (simulation.start)", s.start),
         ("theta0", "rad", "angle of joint {i} at the start, at rest (simulation.initial_theta)", s.initial_theta),
+        ("yd0", "rad", "y_d(0) of output {i}: the reference starts there at rest and the pulse train is added to "
+         "it; 0, or C theta0 for simulation.reference_start = \"measured\" (set it with theta0)",
+         tuple(float(v) for v in reference_offset(d, s))),
     )
     scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
                ("amplitude", "rad", "pulse amplitude (simulation.amplitude_deg, section 5.2)", amplitude_rad(s)))

@@ -122,7 +122,7 @@ def load(b: LoopBuild) -> ctypes.CDLL:
     fn = getattr(lib, f"{b.arm}_sim_run")
     dp = ctypes.POINTER(ctypes.c_double)
     fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp, dp,
-                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
+                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
     fn.restype = ctypes.c_int
     _LOADED[b.key] = (tmp, lib)
     return lib
@@ -152,8 +152,9 @@ class RawRun:
 
 def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous, disturbance, u_clip, r: np.ndarray,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
-             substeps: int) -> RawRun:
-    """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample)."""
+             substeps: int, f0=None) -> RawRun:
+    """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample);
+    ``f0``: the reference filter's start (y_d, y_d'), None: at rest at 0."""
     if form not in b.forms:
         raise DeriveError(f"compiled simulation: controller form {form!r} is not in the registry "
                           f"derive.codegen.forms (known: {', '.join(b.forms)})")
@@ -170,6 +171,7 @@ def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous,
     keep = list(args)  # the arrays must outlive the call
     code = getattr(lib, f"{b.arm}_sim_run")(
         b.forms.index(form), steps, substeps, dt, dt / substeps, *map(_ptr, args), alpha, _ptr(f64(x0)),
+        _ptr(None if f0 is None else f64(f0)),
         _ptr(None if state0 is None else f64(state0)), *(_ptr(out[k]) for k in out), ctypes.byref(fail_step),
         _ptr(fail_input))
     del keep

@@ -10,7 +10,9 @@ Integrated with RK4 (``substeps`` per sample) under a zero-order hold on u.
 Reference (section 5.2): each link's y_d is the output of
 Gr(s) = 1 / (s^2 + 1.8 s + 1) driven by a sampled pulse train of the given
 amplitude, starting at the link's start time (before it the link holds 0);
-y_d' and y_d'' are the filter's states and its ODE, never differences.
+y_d' and y_d'' are the filter's states and its ODE, never differences. With
+reference_start = "measured" y_d starts at the initial pose C theta(0) and the
+pulse train is added to it (derive.sim.start).
 
 Two loops run the same experiment: :func:`run_compiled` (the whole loop in C,
 derive.sim.compiled: the default) and :func:`run_many` (the Python-stepped
@@ -33,6 +35,7 @@ from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
 from derive.progress import progress
 from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
+from derive.sim.start import reference_offset
 
 CONTROLLERS = ("mpc", "dobc", "npid", "mom")   # derive simulate's default list
 VARIANTS = {"mpc": ("mpc", True), "dobc": ("dobc", True), "npid": ("npid", True),
@@ -215,10 +218,11 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
     W = np.array(d.W.tolist(), dtype=float)
     Binv = 1.0 / np.array(d.B.tolist(), dtype=float).diagonal()
     mom_dhat = momentum_estimate(d) if any(form == "mom" for _, form, _ in runs) else None
-    r_all = pulses(s, n, steps)
+    y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
+    r_all = pulses(s, n, steps) + y0
     rows = len(runs)
     x = np.tile(np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)]), (rows, 1))  # at rest
-    f = np.zeros(2 * n)            # reference filter states (y, y') per link, the same for every run
+    f = np.concatenate([y0, np.zeros(n)])   # reference filter states (y, y') per link, the same for every run
     dq_filtered = np.zeros((rows, n))
     out = {k: np.zeros((rows, steps, n)) for k in ("theta", "dtheta", "yd", "u", "dhat")}
     ended = [steps] * rows
@@ -281,8 +285,10 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     state0 = None
     if name == "dobc_zero_init":  # z(0) = -W theta'_measured(0), as the reference sets it
         state0 = -(W @ (x0[n:] + (ndq[0] if ndq is not None else 0.0)))
+    y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
     raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance, plant.u_max,
-                   pulses(s, n, steps), nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps)
+                   pulses(s, n, steps) + y0, nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps,
+                   f0=np.concatenate([y0, np.zeros(n)]))
     dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
     if form == "mom":
         measured = raw.theta + (nq[:len(raw.theta)] if nq is not None else 0.0)

@@ -15,7 +15,7 @@ start               [0, 5, 10, ...]        when each link's pulse train starts [
 coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
 viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
 payload_scale       1.2                    mass factor of the last link's point masses
-disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V] (eq. 12)
+disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V; N m in torque mode] (eq. 12)
 velocity_noise      [0, ...]               tachometer noise std [rad/s]
 position_noise      [0, ...]               potentiometer noise std [rad]
 tacho_filter_hz     0.0                    first-order low-pass on theta-dot, 0 = none

@@ -165,8 +165,9 @@ def test_simulate_cli_writes_plots_metrics_and_json(tmp_path):
 
 def test_simulate_json_into_the_out_folder_that_does_not_exist_yet(tmp_path, monkeypatch):
     """Issue 20 item 7: `simulate --out sim --json sim/metrics.json` failed when sim/ did not exist;
-    now the JSON is written with the folder's files (listed in its MANIFEST.json), and a JSON in
-    a folder elsewhere that does not exist yet is written after its folder is made."""
+    now the JSON is written into the folder after derive's own files (as before, not listed in its
+    MANIFEST.json, so a second run replaces it), and a JSON in a folder elsewhere that does not
+    exist yet is written after its folder is made."""
     from derive.cli import main
 
     monkeypatch.chdir(tmp_path)
@@ -174,9 +175,9 @@ def test_simulate_json_into_the_out_folder_that_does_not_exist_yet(tmp_path, mon
                  "--json", "sim/metrics.json"]) == 0
     data = jsonio.loads((tmp_path / "sim" / "metrics.json").read_text())
     assert set(data["controllers"]) == {"npid"} and data["_units"]["control_effort"] == "V"
-    assert "metrics.json" in jsonio.loads((tmp_path / "sim" / "MANIFEST.json").read_text())["files"]
+    assert "metrics.json" not in jsonio.loads((tmp_path / "sim" / "MANIFEST.json").read_text())["files"]
     assert main(["simulate", "--duration", "0.2", "--controllers", "npid", "--out", "sim",
-                 "--json", "sim/metrics.json"]) == 0           # again: derive's own file, replaced
+                 "--json", "sim/metrics.json"]) == 0           # again: replaced
     assert main(["simulate", "--duration", "0.2", "--controllers", "npid", "--out", "sim2",
                  "--json", "reports/new/m.json"]) == 0
     assert jsonio.loads((tmp_path / "reports" / "new" / "m.json").read_text())["controllers"]["npid"]

@@ -169,9 +169,8 @@ def observer_notes(d: Derivation) -> tuple[str, ...]:
     structure and, for w = "auto", the box, rate and certificate it was synthesised for
     (derive.control.synthesis)."""
     rows = "[" + ", ".join("[" + ", ".join(f"{float(x):.6g}" for x in d.W.row(i)) + "]" for i in range(d.n)) + "]"
-    lines = textwrap.wrap(f"Observer gain W = {rows} {gain_units_text(d.arm.prismatic)} ({d.observer.structure} "
-                          "structure, eq. 23-25; p = W theta' is a joint torque, so the observer's rates W J^-1 are "
-                          "in 1/s).", 88)
+    lines = [f"Observer gain W = {rows} {gain_units_text(d.arm.prismatic)} ({d.observer.structure} structure, "
+             "eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s)."]
     syn = d.synthesis
     if syn is not None:
         box = ", ".join(f"{x:g}" for x in syn.box)

@@ -21,8 +21,7 @@
  *   The two forms are equal in continuous time when init uses the derived
  *   initial estimate dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)); discretised,
  *   they differ by O(dt).
- * Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is
- * a joint torque, so the observer's rates W J^-1 are in 1/s).
+ * Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
  * Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
  * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
  * ms, MOM 36 ms.

@@ -14,8 +14,7 @@ applied u in every build (r' = K (B d - r) for any K > 0 and any speed; it does 
 reduce to a PID: derive.control.momentum).
 A step returns (code, u, clipped): clipped is the bitmask of the joints it
 clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
-Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is
-a joint torque, so the observer's rates W J^-1 are in 1/s).
+Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
 Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
 linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
 ms, MOM 36 ms.

@@ -23,6 +23,8 @@ import sympy as sp
 from derive.cli.display import BUDGET, Shown, shown
 from derive.cli.notation import SUB, Names, TexPrinter, TextPrinter, subscript, width, wrap
 from derive.control.pipeline import Derivation
+from derive.model.actuators import input_word, units_text
+from derive.model.spec import gain_units_text
 
 WIDTH = 100
 DIGITS = 6
@@ -47,6 +49,13 @@ class Entry:
     plain: bool = False        # shown as it is, numbers to 6 digits (laws over the entries of J and G)
 
 
+def _b_what(d: Derivation) -> str:
+    """What B maps: joint torque per volt (DC motors), per motor torque (torque actuation: the gear ratio)."""
+    per = {"V": "volt", "N m": "N m of motor torque (the gear ratio)", "N": "N of motor force (the gear ratio)"}
+    units = list(dict.fromkeys(d.arm.input_units))
+    return "input matrix, joint torque per " + (per[units[0]] if len(units) == 1 else "unit of u (V or N m per motor)")
+
+
 def entries(d: Derivation, full: bool = False) -> list[Entry]:
     """Every quantity shown, in reading order (``full``: as for a small arm, whatever n)."""
     k1, k2 = (sp.factor(k) for k in d.k_formulas)
@@ -67,7 +76,7 @@ def entries(d: Derivation, full: bool = False) -> list[Entry]:
         out.append(E("G", "G(θ, θ̇)", "G(theta, dtheta)", r"G(\theta, \dot{\theta})", ("G", "G", "G"),
                      "Coriolis, centrifugal, gravity and damping torques", "eq. 12", d.G))
     out += [
-        E("B", "B", "B", "B", ("B", "B", "B"), "input matrix, torque per volt", "eq. 12", d.B),
+        E("B", "B", "B", "B", ("B", "B", "B"), _b_what(d), "eq. 12", d.B),
         E("C", "C", "C", "C", ("C", "C", "C"), "output matrix, y = C theta", "eq. 13", d.C),
         E("k1", "k1(T₁, T₂)", "k1(T1, T2)", "k_1(T_1, T_2)", ("k1", "k1", "k_1"), "gain formula", "eq. 16, 18",
           k1, formula=True),
@@ -75,12 +84,12 @@ def entries(d: Derivation, full: bool = False) -> list[Entry]:
           k2, formula=True),
         E("K1", "K1", "K1", "K_1", ("K1", "K1", "K_1"), "predictive gain on e", "eq. 16", d.K1),
         E("K2", "K2", "K2", "K_2", ("K2", "K2", "K_2"), "predictive gain on de/dt", "eq. 17", d.K2),
-        E("W", "W", "W", "W", ("W", "W", "W"), "observer gain", "eq. 25", d.W),
+        E("W", "W", "W", "W", ("W", "W", "W"), f"observer gain [{gain_units_text(d.arm.prismatic)}]", "eq. 25", d.W),
         E("p", "p(θ̇)", "p(dtheta)", r"p(\dot{\theta})", ("p", "p", "p"), "observer function", "eq. 23",
           d.numeric(d.observer.p)),
     ]
     if d.n <= 2:
-        out.append(E("L", "L(θ)", "L(theta)", r"L(\theta)", ("L", "L", "L"), "observer gain W J^-1", "eq. 24", d.L))
+        out.append(E("L", "L(θ)", "L(theta)", r"L(\theta)", ("L", "L", "L"), "observer gain W J^-1 [1/s]", "eq. 24", d.L))
     src = d.formal if brief else d
     over = " over the entries of J" if brief else ""
     out += [
@@ -160,11 +169,11 @@ def _text_block(e: Entry, sh: Shown, pr: TextPrinter, unicode: bool, limit: int)
         line = f"{body[0]}   {e.what} ({e.ref})"
         if len(body) == 1 and width(line) <= limit:
             return [line]
-        return [head, *wrap(name, pr.terms(sp.sympify(value)), limit)]
+        return [*_fill(head, limit), *wrap(name, pr.terms(sp.sympify(value)), limit)]
     cells = [[pr.doprint(x) for x in value.row(i)] for i in range(value.rows)]
     grid = _grid(cells, unicode)
     if not sh.notes and max(width(g) for g in grid) + 2 <= limit:
-        return [head, *("  " + g for g in grid)]
+        return [*_fill(head, limit), *("  " + g for g in grid)]
     symmetric = value.is_square and value == value.T
     base = e.element[0] if unicode else e.element[1]
     notes, lines = [], []
@@ -209,13 +218,14 @@ def render_text(d: Derivation, exact: bool = False, unicode: bool = True, limit:
     names = _names(d)
     pr = TextPrinter(names.text if unicode else names.ascii, unicode, DIGITS)
     theta, dtheta = ("θ", "θ̇") if unicode else ("theta", "dtheta")
-    unit = "N m" if all(a.actuation.value == "torque" for a in d.dynamics.chain.actuators) else "V"
-    lines = [f"arm {arm.name}: {arm.n} joint{'s' if arm.n > 1 else ''}, {arm.description}".rstrip(", "),
-             f"source: {arm.source}",
-             f"notation: {theta} joint coordinates [rad or m], {dtheta} rates, u inputs [{unit}], "
-             f"e = yd - C {theta} (eq. 20)",
-             "numbers: exact rationals" if exact else f"numbers: {DIGITS} significant digits (--exact for rationals)",
-             ""]
+    head = [f"arm {arm.name}: {arm.n} joint{'s' if arm.n > 1 else ''}, {arm.description}".rstrip(", "),
+            f"source: {arm.source}",
+             f"notation: {theta} joint coordinates [rad or m], {dtheta} rates, u {input_word(arm.input_units)}s "
+             f"[{units_text(arm.input_units)}], e = yd - C {theta} (eq. 20)"
+             + (f", wrapped to (-pi, pi] for output{'s' if len(d.wrapped) > 1 else ''} "
+                f"{', '.join(str(i + 1) for i in d.wrapped)} (continuous joints)" if d.wrapped else ""),
+             "numbers: exact rationals" if exact else f"numbers: {DIGITS} significant digits (--exact for rationals)"]
+    lines = [x for h in head for x in _fill(h, limit)] + [""]
     for e in entries(d, full):
         lines += _text_block(e, tidy(e, exact, d.dynamics.angles, full), pr, unicode, limit)
         lines.append("")
@@ -290,8 +300,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--full", action="store_true",
                         help="every term of every quantity (by default a matrix of over 200 terms is shown to a "
                              "stated precision, and beyond 4 joints G, P, D, N in terms of J and G)")
-    parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...",
-                        help="print J, G, gravity, B, the free acceleration and the gains at this pose")
+    parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...[,e=...,de=...]",
+                        help="print J, G, gravity, B, the free acceleration and the gains at this pose, and the "
+                             "initial estimate dhat(0) for the tracking error e(0) and its rate e'(0) (default 0)")
 
 
 def run(args) -> int:

@@ -21,6 +21,7 @@ from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
+from derive.control.wrap import wrap, wrapped_outputs
 from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
 
@@ -73,6 +74,7 @@ class Derivation:
     synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
     momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
     u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
+    wrapped: tuple[int, ...] = ()        # outputs whose error is wrapped to (-pi, pi] (derive.control.wrap)
     formal: "Derivation | None" = None  # the same over placeholders J, G, g, C (derive.control.opaque)
 
     @property
@@ -109,10 +111,13 @@ class Derivation:
 
     @property
     def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
-        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each)."""
+        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each);
+        the outputs of ``wrapped`` (those a continuous joint moves) have e wrapped to (-pi, pi]
+        (derive.control.wrap), so theta and theta - 2 pi give the same e."""
         s = self.dynamics.sym
-        return (sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta),
-                sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta))
+        e = sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta)
+        e = sp.Matrix([wrap(e[i]) if i in self.wrapped else e[i] for i in range(e.rows)])
+        return e, sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta)
 
     def measured(self, expr):
         """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
@@ -132,6 +137,7 @@ def derive(arm: Arm) -> Derivation:
     # derive check decides the control obligations on
     odyn = OpaqueDynamics(dyn)
     mpc_f = derive_mpc(odyn, ctl.T1, ctl.T2, ctl.C)
+    wrapped = wrapped_outputs(mpc_f.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
         synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
@@ -167,7 +173,8 @@ def derive(arm: Arm) -> Derivation:
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
-        u_mom=num(mpc.u_star - mom.dhat), formal=_formal(arm, odyn, mpc_f, obs_f, npid_f, mom_f, values))
+        u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped,
+        formal=_formal(arm, odyn, mpc_f, obs_f, npid_f, mom_f, values, wrapped))
     # the pair is marked: only this Derivation, not a copy with fields replaced, is the
     # inlining of its formal one (derive.proofs.project.formal_first relies on it)
     object.__setattr__(d, "_formal_of", d.formal)
@@ -176,7 +183,7 @@ def derive(arm: Arm) -> Derivation:
 
 
 def _formal(arm: Arm, odyn: OpaqueDynamics, mpc: Mpc, obs: Observer, npid: Npid, mom: Momentum,
-            values: tuple) -> "Derivation":
+            values: tuple, wrapped: tuple[int, ...]) -> "Derivation":
     """The Derivation over placeholders (derive.control.opaque): J, G, g, C are symbol
     matrices, every law the same algebra over them, the arm's values put in."""
     num = Substitution(dict(values), keep_sums=True)
@@ -186,4 +193,4 @@ def _formal(arm: Arm, odyn: OpaqueDynamics, mpc: Mpc, obs: Observer, npid: Npid,
         W=num(obs.W), L=num(obs.L), P=num(npid.P), D=num(npid.D), I=num(npid.I), N=num(npid.N),
         dhat0=num(npid.dhat0), u_star=num(mpc.u_star), u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid),
         dhat=num(obs.dhat), lumped=None, speed_bound=None, warnings=(), momentum=mom,
-        u_mom=num(mpc.u_star - mom.dhat))
+        u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped)

@@ -16,7 +16,7 @@ from derive.dynamics.dag import Memo
 from derive.errors import DerivationError
 
 _FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, sp.exp: ca.exp,
-              sp.log: ca.log, sp.tanh: ca.tanh}
+              sp.log: ca.log, sp.tanh: ca.tanh, sp.floor: ca.floor}   # floor: a continuous joint's wrap
 
 
 def _number(x: sp.Number) -> float:
@@ -55,6 +55,8 @@ def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -
             out = env[expr]
         except KeyError:
             raise DerivationError(f"symbol {expr} has no value in the kernel") from None
+    elif expr.is_NumberSymbol:   # pi (a continuous joint's wrap): the nearest double
+        out = ca.SX(float(expr)) if constants is None else constants.setdefault(expr, ca.SX.sym(f"c{len(constants)}"))
     elif expr.is_Number:
         if constants is None or expr in (0, 1, -1):
             out = ca.SX(_number(expr))

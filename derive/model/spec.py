@@ -44,7 +44,7 @@ from typing import Any
 import sympy as sp
 
 from derive.errors import Problem, SpecError
-from derive.model.actuators import Motor, actuation_value, actuator, read_motors, terms
+from derive.model.actuators import Motor, actuation_value, actuator, input_unit, read_motors, terms
 from derive.model.chain import Actuation, Actuator, Chain, Parameter
 from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show,
                                  text_problem)
@@ -150,7 +150,20 @@ class Arm:
         """Every runtime parameter, in canonical order: the chain's (its bodies' and
         gravity, then the drives' grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the
         controller's (T1, T2, w)."""
-        return self.chain.parameters + controller_parameters(self.controller)
+        return self.chain.parameters + controller_parameters(self.controller, self.prismatic)
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """Per joint, base to tip: True for a prismatic joint (planar arms: none)."""
+        if self.spatial is None:
+            return (False,) * self.n
+        return tuple(not j.type.rotates for j in self.spatial.joints)
+
+    @property
+    def input_units(self) -> tuple[str, ...]:
+        """The unit of each u_i (and d_i, its limit): V, or N m (N) in torque mode
+        (derive.model.actuators.input_unit)."""
+        return tuple(input_unit(m, p) for m, p in zip(self.motors, self.prismatic))
 
 
 T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
@@ -182,25 +195,45 @@ def momentum_parameters(c: "Controller") -> tuple[Parameter, ...]:
                  for i, (s, v) in enumerate(zip(momentum_symbols(len(gains)), gains), 1))
 
 
-def observer_parameters(w=None, W=None, field: str = "controller.w") -> tuple[Parameter, ...]:
-    """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W)."""
+def gain_unit(prismatic: tuple[bool, ...], i: int, j: int) -> str:
+    """The unit of W[i][j] (0-based): p = W theta' is a generalized force (z + p = B dhat, eq. 22,
+    a joint torque in both actuations), so W[i][j] is joint i's force unit times s per joint j's
+    coordinate unit: N m s/rad between revolute joints (N s/m between prismatic ones)."""
+    return f"{'N' if prismatic[i] else 'N m'} s/{'m' if prismatic[j] else 'rad'}"
+
+
+def gain_units_text(prismatic: tuple[bool, ...]) -> str:
+    """W's unit in words: "N m s/rad" (every joint revolute), "N s/m" (every joint prismatic), else
+    per entry (:func:`gain_unit`)."""
+    if len(set(prismatic)) == 1:
+        return gain_unit(prismatic, 0, 0)
+    return "W[i][j] in joint i's force unit s per joint j's coordinate unit (N m s/rad, N m s/m, N s/rad, N s/m)"
+
+
+def observer_parameters(w=None, W=None, field: str = "controller.w",
+                        prismatic: tuple[bool, ...] | None = None) -> tuple[Parameter, ...]:
+    """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W), each with
+    its unit (:func:`gain_unit`; ``prismatic``: which joints are prismatic, default none; w_j has the
+    unit of the diagonal entry W[j][j])."""
+    n = len(W) if W is not None else len(w)
+    kinds = prismatic if prismatic is not None else (False,) * n
     if W is not None:
-        n = len(W)
-        return tuple(Parameter(s, W[k // n][k % n], "1/s", f"{field}[{k // n + 1}][{k % n + 1}]",
+        return tuple(Parameter(s, W[k // n][k % n], gain_unit(kinds, k // n, k % n),
+                               f"{field}[{k // n + 1}][{k % n + 1}]",
                                f"observer gain W[{k // n + 1}][{k % n + 1}] (full W, eq. 23-25)")
                      for k, s in enumerate(full_w_symbols(n)))
-    return tuple(Parameter(s, v, "1/s", f"{field}[{i}]", f"observer gain w{i} (eq. 25)")
+    return tuple(Parameter(s, v, gain_unit(kinds, i - 1, i - 1), f"{field}[{i}]", f"observer gain w{i} (eq. 25)")
                  for i, (s, v) in enumerate(zip(w_symbols(len(w)), w), 1))
 
 
-def controller_parameters(c: Controller) -> tuple[Parameter, ...]:
+def controller_parameters(c: Controller, prismatic: tuple[bool, ...] | None = None) -> tuple[Parameter, ...]:
     """T1, T2 (eq. 14), the observer gain (eq. 25; none here for w = "auto": the
     pipeline adds the synthesised one) and the momentum observer's K as parameters;
-    k1, k2 are expressions of T1, T2."""
+    k1, k2 are expressions of T1, T2. ``prismatic``: which joints are prismatic (W's units)."""
     out = [Parameter(T1_SYMBOL, c.T1, "s", "controller.T1", "minimum prediction time T1 (eq. 14)"),
            Parameter(T2_SYMBOL, c.T2, "s", "controller.T2", "maximum prediction time T2 (eq. 14)")]
     if not c.w_auto:
-        out += observer_parameters(c.w, c.W)
+        out += observer_parameters(c.w, c.W, prismatic=prismatic)
     return tuple(out) + momentum_parameters(c)
 
 

@@ -50,6 +50,7 @@ from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Rea
                                  text_problem)
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
+from derive.model.override import apply_overrides
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.dh import dh_chain
@@ -301,7 +302,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
 
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
             "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None,
-            "sweep": None}
+            "sweep": None, "body_override": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None}
@@ -390,6 +391,12 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
         n = None if spatial is None else spatial.n
     else:
         n = None
+    if "body_override" in top:   # identified bodies (derive identify): URDF and DH arms
+        if kind == "planar":
+            r.add("body_override", "no [[body_override]] tables with [[link]] tables (a planar arm's identified "
+                  "values go into its [[link]] fields)", show(top["body_override"]))
+        elif spatial is not None:
+            spatial = apply_overrides(r, top["body_override"], spatial)
     joints = "[[link]]" if kind == "planar" else ("rows of dh.table" if kind == "dh" else "moving joints")
     motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=kind != "planar", joints=joints)
     if kind == "urdf" and spatial is not None and len(motors) == n:

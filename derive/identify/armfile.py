@@ -101,11 +101,20 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
             _set(link, "inertia", _number(max(izz - m * com * com, 0.0)))
     text = (f"# identified by derive identify from {log_name} (report beside this file); the original: "
             f"{source.name}\n" + tomlkit.dumps(doc))
+    data = tomllib.loads(text)
+    if arm.spatial is not None and "urdf" in data.get("arm", {}):     # checked before out's folder exists
+        data["arm"]["urdf"] = str(_urdf_target(source, source_text))
     try:
-        arm_from_dict(tomllib.loads(text), str(out), out.parent)
+        arm_from_dict(data, str(out), out.parent)
     except (SpecError, tomllib.TOMLDecodeError) as exc:
         raise DerivationError(f"identify: the identified arm file does not load ({exc})") from None
     return text
+
+
+def _urdf_target(source: Path, source_text: str) -> Path:
+    """The absolute path of the original arm file's URDF."""
+    path = Path(str(tomllib.loads(source_text)["arm"]["urdf"]))
+    return Path(os.path.abspath(path if path.is_absolute() else source.parent / path))
 
 
 def _relocate_urdf(doc, source: Path, out: Path) -> None:
@@ -113,5 +122,5 @@ def _relocate_urdf(doc, source: Path, out: Path) -> None:
     table = doc.get("arm")
     if table is None or "urdf" not in table or os.path.isabs(str(table["urdf"])):
         return
-    target = (source.parent / str(table["urdf"])).resolve()
-    table["urdf"] = Path(os.path.relpath(target, out.parent.resolve())).as_posix()
+    target = os.path.abspath(source.parent / str(table["urdf"]))
+    table["urdf"] = Path(os.path.relpath(target, Path(os.path.abspath(out.parent)))).as_posix()

@@ -16,8 +16,10 @@ phi minimising |W_w K phi - y_w|^2 (K: base from standard, derive.identify.regre
 plus a regulariser toward the arm file's phi_0, in the scaled x = S^-1 (phi - phi_0) (S: each
 parameter's scale, from the body's mass and the arm's reach): |x_0|^2 on the directions the
 data does not see (the null space of W_w K S: what no torque depends on keeps the prior's
-value) and REGULARISATION (sigma_p / sigma_1)^2 |x_1|^2 on those it sees (a bias of at most
-about 1e-6 in the least-excited one), subject to every body's
+value), weighted UNSEEN (sigma_p / sigma_1)^2, and REGULARISATION (sigma_p / sigma_1)^2
+|x_1|^2 on those it sees (sigma_1, sigma_p: the largest and smallest singular values of the
+scaled fit): both weaker than the data in its least-excited direction, so that the prior
+never outweighs a measured torque, subject to every body's
 pseudo-inertia being positive semidefinite (the triangle inequality then holds), rotor
 inertias >= 0, viscous friction >= 0 beside the back-EMF, Coulomb friction >= 0;
 cvxpy with Clarabel. A planar [[link]] arm's bodies keep its model: each link a lamina
@@ -26,6 +28,7 @@ fixed, so the LMI is that of the lamina, [[Izz, hx], [hx, m]] >= 0.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +38,7 @@ from derive.identify.excite import condition
 from derive.identify.parameters import pseudo_inertia
 
 REGULARISATION = 1e-6      # weight of the prior on what the data sees, against its weakest direction
+UNSEEN = 1e-2              # ... and on what it does not see: below every direction it sees
 MARGIN = 1e-9              # each LMI holds with this margin times the body's scale (exact checks pass)
 
 
@@ -120,8 +124,8 @@ def consistent(ls: LeastSquares, K: np.ndarray, model: Model) -> Consistent:
     w = cp.Variable(unseen.shape[1]) if unseen.shape[1] else None
     x = seen @ y + (unseen @ w if w is not None else 0)
     fit = cp.sum_squares(cp.multiply(sv[:r] / sv[0], y) - U[:, :r].T @ e / sv[0])
-    prior = REGULARISATION * (sv[r - 1] / sv[0]) ** 2 * cp.sum_squares(y) + (cp.sum_squares(w) if w is not None
-                                                                               else 0)
+    weakest = (sv[r - 1] / sv[0]) ** 2
+    prior = weakest * (REGULARISATION * cp.sum_squares(y) + (UNSEEN * cp.sum_squares(w) if w is not None else 0))
     z = model.z0 + cp.multiply(model.S, x)
     cons = []
     for idx, matrix, margin in model.lmis:
@@ -133,7 +137,9 @@ def consistent(ls: LeastSquares, K: np.ndarray, model: Model) -> Consistent:
     cons += [z[k] >= bound for k, bound in model.lower]
     problem = cp.Problem(cp.Minimize(fit + prior), cons)
     try:
-        problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, max_iter=400)
+        with warnings.catch_warnings():        # "may be inaccurate": the status says so, the LMIs are checked below
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, max_iter=400)
     except cp.error.SolverError as exc:
         raise DataError(f"the physically consistent estimate: Clarabel failed ({exc})") from None
     if problem.status not in ("optimal", "optimal_inaccurate") or y.value is None:

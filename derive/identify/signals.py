@@ -98,7 +98,7 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF) -> Samples:
     if log.samples <= 2 * edge + 1:
         raise DataError(f"{log.source}: {log.samples} samples: expected more than {2 * edge + 1} (the filter's "
                         f"transients, 2 / f_c = {2 / cutoff:g} s at either end, are dropped)")
-    pad = min(3 * (2 * len(sos) + 1), log.samples - 1)
+    pad = min(edge * 3, log.samples - 1)    # odd extension, long enough for its own transient to decay
     theta = sosfiltfilt(sos, log.theta, axis=0, padlen=pad)
     signal = sosfiltfilt(sos, log.signal, axis=0, padlen=pad)
     if log.dtheta is not None:

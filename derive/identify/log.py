@@ -119,14 +119,14 @@ def read_log(path: str | Path, n: int) -> Log:
     if bad.any():
         r, c = map(int, np.argwhere(bad)[0])
         raise DataError(f"{where}: line {rows[r]}, column {header[c].strip()!r}: expected a finite number, "
-                        f"got {data[r, c]!r} ({int(bad.sum())} non-finite value{'s' if bad.sum() > 1 else ''})")
+                        f"got {float(data[r, c])!r} ({int(bad.sum())} non-finite value{'s' if bad.sum() > 1 else ''})")
     t = data[:, cols["t"][0]]
     step = np.diff(t)
     if (step <= 0).any():
         r = int(np.argmax(step <= 0)) + 1
         what = "repeated" if step[r - 1] == 0 else "unsorted"
-        raise DataError(f"{where}: line {rows[r]}: expected times that increase, got t = {t[r]!r} after "
-                        f"t = {t[r - 1]!r} on line {rows[r - 1]} ({what} times)")
+        raise DataError(f"{where}: line {rows[r]}: expected times that increase, got t = {float(t[r])!r} after "
+                        f"t = {float(t[r - 1])!r} on line {rows[r - 1]} ({what} times)")
     if len(t) > 2:
         median = float(np.median(step))
         worst = int(np.argmax(np.abs(step - median)))

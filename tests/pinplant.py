@@ -47,9 +47,14 @@ def chain_model(arm: Arm, payload: "pin.Inertia | None" = None) -> "pin.Model":
     return model
 
 
-def urdf_model(urdf: Path, payload: "pin.Inertia | None" = None, gravity=(0.0, 0.0, -9.81)) -> "pin.Model":
-    """Pinocchio's model of a URDF (fixed joints merged by Pinocchio), ``payload`` on the last body."""
+def urdf_model(urdf: Path, payload: "pin.Inertia | None" = None, gravity=(0.0, 0.0, -9.81),
+               moving: list[str] | None = None) -> "pin.Model":
+    """Pinocchio's model of a URDF (fixed joints merged by Pinocchio), the joints not in ``moving``
+    locked at 0 (a gripper's fingers), ``payload`` on the last body."""
     model = pin.buildModelFromUrdf(str(urdf))
+    if moving is not None:
+        lock = [model.getJointId(name) for name in model.names[1:] if name not in moving]
+        model = pin.buildReducedModel(model, lock, pin.neutral(model)) if lock else model
     if payload is not None:
         model.inertias[model.njoints - 1] = model.inertias[model.njoints - 1] + payload
     model.gravity = pin.Motion(np.array(gravity, dtype=float), np.zeros(3))

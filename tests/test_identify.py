@@ -107,6 +107,16 @@ def test_noise_free_ur5_base_parameters_to_1e_6(ur5):
     _noise_free(ur5)
 
 
+@pytest.mark.slow
+def test_noise_free_panda_base_parameters_to_1e_6(tmp_path):
+    """The 7-joint Panda with a 1 kg payload (make fuzz; make bench runs a 60 s log of it too)."""
+    panda = Path(__file__).parent / "data" / "urdf" / "panda.toml"
+    arm = load_arm(panda)
+    payload = pin.Inertia(1.0, np.array([0.0, 0.02, 0.05]), np.diag([1e-3, 1e-3, 1e-3]))
+    _noise_free(Case(tmp_path, str(panda), lambda a: pinplant.urdf_model(
+        panda.parent / "panda.urdf", payload, moving=[j.name for j in arm.chain.joints]), 20.0, 30))
+
+
 def test_noise_free_planar_3link_and_vertical_arms(tmp_path):
     for arm in ("planar_3link", "vertical_2link"):
         _noise_free(Case(tmp_path, arm, lambda a: pinplant.chain_model(a, PLANAR_PAYLOAD), 10.0, 20))

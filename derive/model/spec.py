@@ -24,7 +24,9 @@ base frame, normalised; a planar arm gives [x, y], default [0, -1], so
 [0, 0, -1]), ``actuation`` ("voltage", the default, or "torque": the default
 of every ``[[motor]]``; torque-actuated arms may leave ``[[motor]]`` out).
 DH and URDF arms give each joint's viscous friction in ``[[motor]]``
-(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default).
+(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default), and may
+replace a body's ten parameters by a ``[[body_override]]`` table
+(:mod:`derive.model.override`; derive identify writes them).
 
 The runtime parameters (:attr:`Arm.parameters`) are the file's own values,
 each with its unit and field: the chain's, the drives' (Kt, Kv, Ra, gr, Jm,

@@ -19,6 +19,8 @@ twice the cut-off first: derive.identify.signals).
 """
 from __future__ import annotations
 
+import json
+import resource
 import subprocess
 import sys
 import tempfile
@@ -154,14 +156,16 @@ def measure(name: str, work: Path) -> dict:
             "pin": pin_ns, "why": why, "err": err}
 
 
-def _cli(*args: str) -> float:
-    """Wall time of ``derive ARGS`` in a fresh process (fails the section on a non-zero exit)."""
+def _cli(*args: str) -> tuple[float, float]:
+    """(wall, CPU) seconds of ``derive ARGS`` in a fresh process (fails the section on a non-zero exit)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "derive", *args], capture_output=True, text=True)
     elapsed = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise AssertionError(f"derive {' '.join(args)}: exit {proc.returncode}\n{proc.stderr}")
-    return elapsed
+    return elapsed, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
 
 def panda_end_to_end(work: Path) -> dict:
@@ -185,7 +189,6 @@ def panda_end_to_end(work: Path) -> dict:
     t_identify = _cli("identify", str(toml), str(log), "--out", str(out))
     reg = derive_regressor(arm.chain)
     truth = reg.K @ np.concatenate([standard(model), np.zeros(2 * n)])
-    import json
     report = json.loads((work / "panda_identified_report" / "identification.json").read_text())
     got = np.array([b["least_squares"] for b in report["base_parameters"]])
     err = np.abs(got - truth) / np.maximum(np.abs(truth), np.abs(truth).max())
@@ -212,19 +215,21 @@ def run() -> Section:
                      "derive + generate_files --regressor", "C <arm>_regressor", "Pinocchio C++ "
                      "computeJointTorqueRegressor", "Y pi vs Pinocchio Y_std phi"), cells),
               table(("Panda, 60 s at 1 kHz", "value"), [
-                  ["derive excite --duration 60 (fresh process)", seconds(e2e["excite"])],
+                  ["derive excite --duration 60 (fresh process), wall / CPU",
+                   f"{seconds(e2e['excite'][0])} / {seconds(e2e['excite'][1])}"],
                   ["log samples / stacked-regressor rows", f"{e2e['samples']} / {e2e['rows']}"],
-                  ["derive identify (fresh process: read, filter, regress, LMI, report, arm file)",
-                   seconds(e2e["identify"])],
+                  ["derive identify (fresh process: read, filter, regress, LMI, report, arm file), wall / CPU",
+                   f"{seconds(e2e['identify'][0])} / {seconds(e2e['identify'][1])}"],
                   ["equations after decimation to 2 x the cut-off", e2e["equations"]],
                   ["condition number of the stacked regressor", f"{e2e['cond']:.4g}"],
                   ["Y at all stacked-regressor rows (derive.identify.batch)", seconds(e2e["rows_time"])],
                   ["largest base-parameter error (noise-free, norm-wise relative)", f"{e2e['err']:.1e}"]]),
               "Pinocchio's regressor is that of the 10 n standard parameters (its Y_std phi = tau); derive's "
-              "of the p base parameters, pi = K phi. Times: one run each on the shared machine."]
+              "of the p base parameters, pi = K phi. Times: one run each on the shared machine (wall time "
+              "follows its load; CPU time is the process's own)."]
     by = {r["name"]: r for r in rows}
-    goals = (Goal("derive identify of a 60 s, 1 kHz Panda log under 30 s", e2e["identify"] < 30,
-                  seconds(e2e["identify"])),
+    goals = (Goal("derive identify of a 60 s, 1 kHz Panda log under 30 s (wall)", e2e["identify"][0] < 30,
+                  f"{seconds(e2e['identify'][0])}, CPU {seconds(e2e['identify'][1])}"),
              Goal("Panda C regressor no slower than Pinocchio's computeJointTorqueRegressor in the same run",
                   by["panda"]["pin"] is not None and by["panda"]["c"] <= by["panda"]["pin"],
                   f"{by['panda']['c']:.0f} vs {by['panda']['pin']:.0f} ns" if by["panda"]["pin"] is not None

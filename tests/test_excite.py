@@ -73,7 +73,7 @@ def test_fourier_series_derivatives_are_exact():
     a, b, q0, w = rng.normal(size=(2, 4)), rng.normal(size=(2, 4)), rng.normal(size=2), 0.7
     t = np.linspace(0, 5, 7)
     h = 1e-5
-    q, dq, ddq = fourier(t, q0, a, b, w)
+    _, dq, ddq = fourier(t, q0, a, b, w)
     qp, dqp, _ = fourier(t + h, q0, a, b, w)
     qm, dqm, _ = fourier(t - h, q0, a, b, w)
     np.testing.assert_allclose((qp - qm) / (2 * h), dq, atol=1e-8)

@@ -91,8 +91,9 @@ def ur5(tmp_path_factory) -> Case:
 def _noise_free(case: Case) -> None:
     idn = identify(case.arm, read_log(case.log(), case.arm.n), reg=case.reg)
     err = np.abs(idn.ls.pi - case.pi)
-    # each base parameter to 1e-6 of itself, norm-wise (1e-6 of the largest) where it is zero or nearly
-    bound = 1e-6 * np.maximum(np.abs(case.pi), np.abs(case.pi).max())
+    # each base parameter to 1e-6 of itself; one below 1 % of the largest (zero, most of them:
+    # the UR5's and the payload's offsets) to 1e-6 of that 1 %
+    bound = 1e-6 * np.maximum(np.abs(case.pi), 1e-2 * np.abs(case.pi).max())
     worst = int(np.argmax(err / bound))
     assert np.all(err <= bound), (f"{case.name}: {idn.names[worst]} = {idn.ls.pi[worst]!r}, truth {case.pi[worst]!r}, "
                                   f"error {err[worst]:.3g} > {bound[worst]:.3g}")
@@ -134,6 +135,25 @@ def test_noisy_base_parameters_within_3_standard_deviations(which, request):
     expected = noise * np.sqrt(2 * idn.samples.cutoff / idn.samples.rate)
     assert np.all(np.abs(idn.ls.sigma / expected - 1) < 0.3), idn.ls.sigma
     assert np.all(np.array(idn.cons.min_eigenvalues) >= 0)
+
+
+def test_coulomb_friction_with_the_option(planar, tmp_path):
+    """A plant with Coulomb friction fc sign(theta'): --coulomb identifies fc1, fc2 beside the
+    base parameters; each within 3 standard deviations with noise, within 1 % without (the
+    step at a reversal is smeared by the filter: derive.identify.signals)."""
+    fc = np.array([0.02, 0.01])
+    truth = np.concatenate([planar.pi, fc])
+    for noise in (0.0, NOISE["glasgow_2link"]):
+        tau = planar.tau + fc * np.sign(planar.dq) + noise * np.random.default_rng(3).normal(size=planar.tau.shape)
+        log = tmp_path / f"coulomb_{noise}.csv"
+        pinplant.write_log(log, planar.t, planar.q, tau)
+        idn = identify(planar.arm, read_log(log, 2), coulomb=True, reg=planar.reg)
+        assert idn.names[-2:] == ("fc1", "fc2")
+        if noise:
+            assert np.all(np.abs(idn.ls.pi - truth) <= 3 * idn.ls.std), (idn.ls.pi - truth) / idn.ls.std
+        else:
+            np.testing.assert_allclose(idn.ls.pi, truth, rtol=1e-2, atol=1e-2 * np.abs(truth).max())
+        assert np.all(idn.cons.phi[-2:] >= 0) and np.all(np.array(idn.cons.min_eigenvalues) >= 0)
 
 
 def test_the_log_may_hold_current_or_voltage_instead_of_torque(planar):

@@ -53,7 +53,7 @@ def _dynamics_reference(arm):
     """J theta'' + G of the arm's dynamics stage (derive.dynamics: no controller derived) in
     ball arithmetic (derive.codegen.balls), 40 digits certified."""
     dyn = derive_dynamics(arm)
-    s, n = dyn.sym, dyn.n
+    s = dyn.sym
     tau = dag_xreplace(list(dyn.J * sp.Matrix(s.ddtheta) + dyn.G), dyn.subs)
     f = BallFunction(list(s.theta + s.dtheta + s.ddtheta), tau, "tau")
 

@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI: derive excite [ARM] --duration T --out FILE [--harmonics L] [--seed S] [--iterations K]
     [--rate HZ] [--velocity-limit V] [--acceleration-limit A] [--json FILE]."""
     from derive.cli import add_arm_argument
-    from derive.identify.excite import HARMONICS
+    from derive.identify import HARMONICS
 
     add_arm_argument(parser)
     parser.add_argument("--duration", type=float, required=True, help="length of the trajectory [s]")

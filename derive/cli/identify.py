@@ -23,7 +23,7 @@ from derive.errors import DataError
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI: derive identify [ARM] LOG [--out FILE] [--report DIR] [--cutoff HZ] [--coulomb]."""
     from derive.cli import add_arm_argument
-    from derive.identify.signals import CUTOFF
+    from derive.identify import CUTOFF
 
     add_arm_argument(parser)
     parser.add_argument("log", type=Path, help="the logged run (CSV: t, theta1..n, tau1..n | current1..n | u1..n)")

@@ -14,3 +14,6 @@ Beside :mod:`derive.control` (imports flow model -> dynamics -> identify -> code
 * :mod:`derive.identify.armfile`, :mod:`derive.identify.report`: the identified arm file and
   the report.
 """
+
+CUTOFF = 10.0     # Hz: derive identify's default low-pass cut-off (derive.identify.signals)
+HARMONICS = 5     # derive excite's default harmonics per joint (derive.identify.excite)

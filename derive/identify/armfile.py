@@ -22,7 +22,7 @@ import tomlkit
 
 from derive.errors import DerivationError, SpecError
 from derive.identify.run import Identification
-from derive.model.spec import Arm, arm_from_dict
+from derive.model.spec import arm_from_dict
 
 _INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
@@ -48,7 +48,7 @@ def _set(table, key: str, value) -> None:
     table[key] = item
 
 
-def _motors(doc, arm: Arm, n: int):
+def _motors(doc, n: int):
     """The [[motor]] array of tables, created (gear ratio 1, torque actuation) when absent."""
     if "motor" not in doc:
         aot = tomlkit.aot()
@@ -65,7 +65,7 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
     doc = tomlkit.parse(source_text)
     phi = idn.cons.phi
     gears = [float(m.gear_ratio) for m in arm.motors]
-    motors = _motors(doc, arm, n)
+    motors = _motors(doc, n)
     base = 10 * n
     for j in range(n):
         _set(motors[j], "rotor_inertia", _number(phi[base + j] / gears[j] ** 2))

@@ -10,8 +10,6 @@ printers do (derive.codegen.printing).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import casadi as ca
 import numpy as np
 
@@ -71,10 +69,3 @@ class Batch:
                 out[ins[1]][ins[2]] = w[ins[3]]
         return out
 
-
-def stacked(f: Batch, columns: Sequence[np.ndarray], rows: int) -> np.ndarray:
-    """The output 0 of ``f`` (a row-major rows x cols matrix per point) at the points
-    whose inputs are ``columns``, stacked: shape (points * rows, cols), point by point."""
-    flat = f(*columns)[0]                       # (rows * cols, points)
-    cols = flat.shape[0] // rows
-    return flat.T.reshape(-1, rows, cols).reshape(-1, cols)

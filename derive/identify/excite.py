@@ -27,11 +27,11 @@ from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
 from derive.errors import DataError
+from derive.identify import HARMONICS
 from derive.identify.regressor import Regressor
 from derive.model.chain import Chain
 
 MAX_PERIOD = 10.0           # s: the fundamental period is duration / k <= this
-HARMONICS = 5
 VELOCITY = {"rad": 2.0, "m": 0.5}           # rad/s, m/s when neither the file nor the command gives one
 ACCELERATION = {"rad": 5.0, "m": 2.0}       # rad/s^2, m/s^2 (URDF has no acceleration limits)
 POSITION = {"rad": math.pi, "m": 0.1}       # +- this when the file gives no position limits

@@ -45,7 +45,7 @@ from derive.errors import DerivationError
 from derive.identify.batch import Batch
 from derive.identify.parameters import (BODY_NAMES, INERTIA_INDEX, StandardParameter, body_entries,
                                         standard_parameters, standard_values)
-from derive.model.chain import Body, Chain, JointType
+from derive.model.chain import Body, Chain
 from derive.model.symbols import JointSymbols
 
 SEED = 20260522            # the random states of the base-parameter step (deterministic)

@@ -2,7 +2,7 @@
 
 ``identification.json`` (strict: derive.jsonio), ``identification.md``,
 ``torques.png`` (per joint: the torque J theta'' + G from the log beside what each
-estimate predicts, and the residuals) and ``parameters.png`` (each base parameter:
+estimate predicts, and the residuals; every k-th row, at most PLOTTED per line) and ``parameters.png`` (each base parameter:
 the arm file's value, the least-squares estimate +- 3 standard deviations and the
 physically consistent one, relative to the largest of them in magnitude).
 """
@@ -21,6 +21,7 @@ from derive.identify.estimate import REGULARISATION  # noqa: E402
 from derive.identify.run import Identification  # noqa: E402
 from derive.identify.signals import ORDER  # noqa: E402
 
+PLOTTED = 2000  # points per line of torques.png at most (every k-th row)
 DIGITS = 7      # significant digits of the report's figures (deterministic across machines)
 METHOD = ("Least squares: ordinary, then each joint's rows weighted by 1/sigma_j from its residual (Gautier and "
           "Khalil 1992); standard deviations from s^2 (W_w^T W_w)^-1. Consistent: the standard parameters nearest "
@@ -30,8 +31,8 @@ METHOD = ("Least squares: ordinary, then each joint's rows weighted by 1/sigma_j
 
 def report_data(idn: Identification, log_name: str, out_name: str) -> dict:
     """Everything the report states, as plain data (numbers, strings, lists)."""
-    s, ls, cons, n = idn.samples, idn.ls, idn.cons, idn.reg.n
-    exprs = [b.text() for b in idn.reg.base] + [f"fc{j}" for j in range(1, n + 1)] * idn.coulomb
+    s, ls, cons = idn.samples, idn.ls, idn.cons
+    exprs = [b.text() for b in idn.reg.base] + list(idn.names[idn.reg.p:])     # fc1..n: themselves
     base = [{"name": name, "expression": expr, "unit": unit, "prior": float(p), "least_squares": float(v),
              "std": float(sd), "relative_std_percent": float(r) if np.isfinite(r) else None,
              **({} if np.isfinite(r) else {"relative_std_percent_undefined": "the estimate is 0"}),
@@ -40,8 +41,8 @@ def report_data(idn: Identification, log_name: str, out_name: str) -> dict:
                                                           ls.relative_std, cons.pi)]
     standard = [{"name": p.name, "unit": p.unit, "prior": float(a), "consistent": float(b)}
                 for p, a, b in zip(idn.reg.standard, idn.phi0, cons.phi)]
-    standard += [{"name": f"fc{j}", "unit": "N m", "prior": 0.0, "consistent": float(cons.phi[-n + j - 1])}
-                 for j in range(1, n + 1)] * idn.coulomb
+    standard += [{"name": name, "unit": unit, "prior": 0.0, "consistent": float(cons.phi[len(idn.reg.standard) + k])}
+                 for k, (name, unit) in enumerate(zip(idn.names[idn.reg.p:], idn.units[idn.reg.p:]))]
     joints = [{"joint": j + 1, "sigma": float(ls.sigma[j]), "rms_least_squares": float(a),
                "rms_consistent": float(b), "rms_torque": float(c)}
               for j, (a, b, c) in enumerate(zip(idn.rms(idn.predicted_ls), idn.rms(idn.predicted_cons),
@@ -109,15 +110,16 @@ def _png(fig) -> bytes:
 def torque_figure(idn: Identification) -> bytes:
     """Per joint: measured and predicted torque over time, and the residuals."""
     s, n = idn.samples, idn.reg.n
+    k = slice(None, None, max(1, len(s.t) // PLOTTED))     # a line of at most about PLOTTED points
     fig, axes = plt.subplots(n, 2, figsize=(11, 2.2 * n + 0.8), sharex=True, squeeze=False)
     for j in range(n):
         ax, res = axes[j]
-        ax.plot(s.t, s.y[:, j], color="k", lw=1.2, label="from the log")
-        ax.plot(s.t, idn.predicted_ls[:, j], color="tab:blue", lw=0.8, ls="--", label="least squares")
-        ax.plot(s.t, idn.predicted_cons[:, j], color="tab:orange", lw=0.8, ls=":", label="consistent")
+        ax.plot(s.t[k], s.y[k, j], color="k", lw=1.2, label="from the log")
+        ax.plot(s.t[k], idn.predicted_ls[k, j], color="tab:blue", lw=0.8, ls="--", label="least squares")
+        ax.plot(s.t[k], idn.predicted_cons[k, j], color="tab:orange", lw=0.8, ls=":", label="consistent")
         ax.set_ylabel(f"joint {j + 1} [N m]")
-        res.plot(s.t, s.y[:, j] - idn.predicted_ls[:, j], color="tab:blue", lw=0.6)
-        res.plot(s.t, s.y[:, j] - idn.predicted_cons[:, j], color="tab:orange", lw=0.6)
+        res.plot(s.t[k], s.y[k, j] - idn.predicted_ls[k, j], color="tab:blue", lw=0.6)
+        res.plot(s.t[k], s.y[k, j] - idn.predicted_cons[k, j], color="tab:orange", lw=0.6)
         res.set_ylabel("residual [N m]")
         for a in (ax, res):
             a.grid(True, lw=0.3)

@@ -19,7 +19,8 @@ from derive.identify.estimate import Consistent, LeastSquares, Model, consistent
     spatial_model
 from derive.identify.log import Log, minimum_samples
 from derive.identify.regressor import Regressor, derive_regressor
-from derive.identify.signals import CUTOFF, Samples, drive_constants, prepare
+from derive.identify import CUTOFF
+from derive.identify.signals import Samples, drive_constants, prepare
 from derive.model.spec import Arm
 
 
@@ -84,12 +85,12 @@ def _model(arm: Arm, phi0: np.ndarray, emf: np.ndarray, coulomb: bool) -> Model:
 
 def regression(reg: Regressor, s: Samples, coulomb: bool) -> tuple[np.ndarray, np.ndarray]:
     """(W, y): the regressor stacked sample by sample (N n x p, plus n Coulomb columns
-    sign(theta'_j) on joint j's rows under ``coulomb``) and the torques (N n)."""
+    sign(theta'_j), filtered as the torque, on joint j's rows under ``coulomb``) and the torques (N n)."""
     W = reg.evaluate(s.theta, s.dtheta, s.ddtheta)                 # N x n x p
     if coulomb:
         N, n = s.theta.shape
         C = np.zeros((N, n, n))
-        C[:, np.arange(n), np.arange(n)] = np.sign(s.dtheta)
+        C[:, np.arange(n), np.arange(n)] = s.sign
         W = np.concatenate([W, C], axis=2)
     return W.reshape(-1, W.shape[2]), s.y.reshape(-1)
 
@@ -109,9 +110,10 @@ def _identify(arm: Arm, log: Log, cutoff: float, coulomb: bool, reg: Regressor |
     reg = derive_regressor(arm.chain) if reg is None else reg
     n = reg.n
     seconds["regressor"] = time.perf_counter() - started
-    names = reg.names + (tuple(f"fc{j}" for j in range(1, n + 1)) if coulomb else ())
-    units = tuple(b.unit for b in reg.base) + tuple(
-        "N m" if j.type.rotates else "N" for j in arm.chain.joints) * coulomb
+    friction = tuple(f"fc{j}" for j in range(1, n + 1)) if coulomb else ()
+    names = reg.names + friction
+    units = tuple(b.unit for b in reg.base) + tuple("N m" if j.type.rotates else "N"
+                                                    for j, _ in zip(arm.chain.joints, friction))
     minimum_samples(log, len(names), n)
     mark = time.perf_counter()
     s = prepare(log, arm.chain, cutoff)

@@ -15,7 +15,10 @@ of robots with power model", ICRA 1997; J. Swevers et al. 1997).
 The measured signal becomes the torque J theta'' + G of eq. 12, which includes the
 motors' back-EMF damping gr^2 Kt Kv / Ra theta' of voltage-driven joints:
 tau1..n (joint torque): tau + gr^2 Kt Kv / Ra theta'; current1..n: gr Kt i + the same;
-u1..n: B u (eq. 12 with d = 0).
+u1..n: B u (eq. 12 with d = 0). The Coulomb columns sign(theta') of derive identify
+--coulomb are a step at every reversal: they pass the torque's filter too (parallel
+filtering), so that the step is smeared alike on both sides of the regression; the other
+columns are smooth functions of the motion, whose band lies below the cut-off.
 """
 from __future__ import annotations
 
@@ -27,18 +30,19 @@ import sympy as sp
 from scipy.signal import butter, sosfiltfilt
 
 from derive.errors import DataError
+from derive.identify import CUTOFF
 from derive.identify.log import Log
 from derive.model.actuators import terms
 from derive.model.chain import Actuation, Chain
 
-CUTOFF = 10.0     # Hz: the default cut-off of the low-pass filter
-ORDER = 4
+ORDER = 4         # of the Butterworth filter (CUTOFF: derive.identify, the default cut-off)
 
 
 @dataclass(frozen=True)
 class Samples:
-    """The rows of the regression: t (N), theta, dtheta, ddtheta and the torque y of
-    J theta'' + G (N x n each); how they were made (cut-off [Hz], the log's rate [Hz],
+    """The rows of the regression: t (N), theta, dtheta, ddtheta, the torque y of
+    J theta'' + G and sign(theta') through the same filter as the torque (the Coulomb
+    columns, N x n each); how they were made (cut-off [Hz], the log's rate [Hz],
     decimation r, rows dropped at each end)."""
 
     t: np.ndarray
@@ -46,6 +50,7 @@ class Samples:
     dtheta: np.ndarray
     ddtheta: np.ndarray
     y: np.ndarray
+    sign: np.ndarray
     cutoff: float
     rate: float
     decimation: int
@@ -111,6 +116,8 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF) -> Samples:
         y = signal * B
     else:
         y = (signal * kt if log.family == "current" else signal) + emf * dtheta
+    sign = sosfiltfilt(sos, np.sign(dtheta), axis=0, padlen=pad)   # a step, smeared as the torque's is
     rows = slice(edge, log.samples - edge, step)
     return Samples(t=log.t[rows], theta=theta[rows], dtheta=dtheta[rows], ddtheta=ddtheta[rows], y=y[rows],
+                   sign=sign[rows],
                    cutoff=cutoff, rate=fs, decimation=step, edge=edge)

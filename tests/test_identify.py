@@ -161,6 +161,13 @@ def test_the_log_may_hold_current_or_voltage_instead_of_torque(planar):
     for family in ("current", "u"):
         got = identify(planar.arm, read_log(planar.log(family=family), 2), reg=planar.reg).ls.pi
         np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max(), err_msg=family)
+    # a tachometer's dtheta1..n: the velocity is filtered, not differentiated from theta
+    log = planar.tmp / "with_dtheta.csv"
+    pinplant.write_log(log, planar.t, planar.q, planar.tau, dtheta=planar.dq)
+    read = read_log(log, 2)
+    assert read.dtheta is not None
+    got = identify(planar.arm, read, reg=planar.reg).ls.pi
+    np.testing.assert_allclose(got, planar.pi, rtol=1e-6, atol=1e-8 * np.abs(planar.pi).max())
 
 
 def test_cli_identify_writes_a_consistent_arm_file_and_report(ur5, tmp_path, capsys):

@@ -84,7 +84,8 @@ CASADI_NAMES = frozenset("arg res iw w mem sz_arg sz_res sz_iw sz_w f0 s0 sq".sp
 
 # What the templates append to an arm name (lowercase; macros use it upper-cased):
 # <arm>_real, <arm>_kernel_gains, <ARM>_KERNELS_H, files <arm>_kernels.c, target <arm>_selftest,
-# the plant's <arm>_mass_matrix, <arm>_plant.c, target <arm>_plant_selftest; the CMake variables
+# the plant's <arm>_mass_matrix, <arm>_plant.c, target <arm>_plant_selftest; the regressor's
+# (derive generate --regressor) <arm>_regressor, <ARM>_REGRESSOR_H, <ARM>_NB; the CMake variables
 # <ARM>_BUILD_TESTS, <ARM>_INSTALL, <ARM>_TOP_LEVEL, <ARM>_CMAKE_DIR.
 GENERATED_SUFFIXES = frozenset("""
 real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state mask
@@ -94,6 +95,7 @@ mass_matrix bias gravity input_matrix forward_dynamics plant plant_h plant_selft
 plant_kernel_bias plant_kernel_gravity plant_kernel_input_matrix plant_kernel_forward_dynamics
 build_tests install top_level cmake_dir
 mom_state mom_init mom_step mom_estimate kernel_mom kernel_mom_next kernel_mom_init
+regressor regressor_h regressor_selftest regressor_kernel base_names base_values nb
 """.split())
 # A name ending in _<tail> would make the same names as the arm without it: arm x_kernel's
 # x_kernel_gains is arm x's kernel; x_kernels.h and the x_selftest target are arm x's files.

@@ -24,7 +24,9 @@ base frame, normalised; a planar arm gives [x, y], default [0, -1], so
 [0, 0, -1]), ``actuation`` ("voltage", the default, or "torque": the default
 of every ``[[motor]]``; torque-actuated arms may leave ``[[motor]]`` out).
 DH and URDF arms give each joint's viscous friction in ``[[motor]]``
-(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default).
+(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default), and may
+replace a body's ten parameters by a ``[[body_override]]`` table
+(:mod:`derive.model.override`; derive identify writes them).
 
 The runtime parameters (:attr:`Arm.parameters`) are the file's own values,
 each with its unit and field: the chain's, the drives' (Kt, Kv, Ra, gr, Jm,
@@ -50,6 +52,7 @@ from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Rea
                                  text_problem)
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
+from derive.model.override import apply_overrides
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.dh import dh_chain
@@ -336,7 +339,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
 
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
             "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None,
-            "sweep": None}
+            "sweep": None, "body_override": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None}
@@ -425,6 +428,12 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
         n = None if spatial is None else spatial.n
     else:
         n = None
+    if "body_override" in top:   # identified bodies (derive identify): URDF and DH arms
+        if kind == "planar":
+            r.add("body_override", "no [[body_override]] tables with [[link]] tables (a planar arm's identified "
+                  "values go into its [[link]] fields)", show(top["body_override"]))
+        elif spatial is not None:
+            spatial = apply_overrides(r, top["body_override"], spatial)
     joints = "[[link]]" if kind == "planar" else ("rows of dh.table" if kind == "dh" else "moving joints")
     motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=kind != "planar", joints=joints)
     if kind == "urdf" and spatial is not None and len(motors) == n:

@@ -96,7 +96,8 @@ CASES = [
     C("planar-on-chain", good(j1=joint("j1", "a", "b", "planar")), arm_keys(), ("urdf joint 'j1' type",),
       "a planar joint is not supported"),
     C("mimic-on-chain", good(j2=joint("j2", "b", "c", extra='<axis xyz="0 0 1"/><mimic joint="j1"/>')), arm_keys(),
-      ("urdf joint 'j2' <mimic>",), "a mimic joint is not supported", cli=True),
+      ("urdf joint 'j2' <mimic>",), "(it follows chain joint 'j1': derive's chain has one coordinate per joint); "
+      "lock it (locked = { j2 = 0.0 } under [arm]) or remove the <mimic>", cli=True),
     C("negative-mass", good(b=link("b", f'<mass value="-1.0"/>{BOX}')), arm_keys(),
       ("urdf link 'b' <inertial><mass value>",), ">= 0 (kg), got -1.0"),
     C("inertia-not-psd", good(b=link("b", '<mass value="1"/><inertia ixx="0.01" ixy="0.02" ixz="0" iyy="0.01" '

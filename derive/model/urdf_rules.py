@@ -166,9 +166,18 @@ def held_values(r: Reader, robot: Any, chain_joints: set[str], locked: dict[str,
     values: dict[str, sp.Expr] = {}
     mass_below = _mass_below(robot)
 
+    failed: set[str] = set()
+
     def value(name: str, trail: tuple[str, ...]) -> sp.Expr | None:
-        if name in values:
-            return values[name]
+        if name not in values and name not in failed:
+            result = follow(name, trail)
+            if result is None:
+                failed.add(name)
+            else:
+                values[name] = result
+        return values.get(name)
+
+    def follow(name: str, trail: tuple[str, ...]) -> sp.Expr | None:
         j = joints[name]
         if name in locked:
             if j.mimic is not None and name in matters:
@@ -184,7 +193,7 @@ def held_values(r: Reader, robot: Any, chain_joints: set[str], locked: dict[str,
             return _bad(r, notes, strict, field, "the name of a revolute, continuous or prismatic joint of the URDF",
                         f"{master!r}, {what}")
         if master in trail:
-            cycle = " -> ".join(trail[trail.index(master):] + (master,))
+            cycle = " -> ".join(trail[trail.index(master):] + (name, master))
             return _bad(r, notes, strict, field, "a joint that does not mimic back (a mimic chain ends at a joint "
                         "that moves on its own)", f"{master!r}, a mimic cycle {cycle}")
         if master in chain_joints:
@@ -215,9 +224,7 @@ def held_values(r: Reader, robot: Any, chain_joints: set[str], locked: dict[str,
             continue
         if j.name in chain_joints and j.name not in locked:
             continue
-        v = value(j.name, ())
-        if v is not None:
-            values[j.name] = v
+        value(j.name, ())
     return values
 
 

@@ -258,7 +258,7 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     warnings = judge_findings(r, doc.findings, moving, matters, notes)
     repairs = check_inertials(r, robot, moving, repair, notes)
     held = held_values(r, robot, chain_joints, locked, on_path, matters, notes)
-    chain_mimics(r, path, held, base, tip)
+    chain_mimics(r, path, held, chain_joints, base, tip)
     if r.problems:
         return None
     found = _build(r, robot, base, path, on_path, held, notes, gravity, direction)

@@ -228,10 +228,11 @@ def held_values(r: Reader, robot: Any, chain_joints: set[str], locked: dict[str,
     return values
 
 
-def chain_mimics(r: Reader, path: list, held: dict[str, sp.Expr], base: str, tip: str) -> None:
-    """A mimic joint on the path that is not held follows a chain joint: refused."""
+def chain_mimics(r: Reader, path: list, held: dict[str, sp.Expr], chain_joints: set[str], base: str,
+                 tip: str) -> None:
+    """A mimic joint on the path that follows a moving chain joint: refused."""
     for j in path:
-        if j.type in MOVING_TYPES and j.mimic is not None and j.name not in held:
+        if j.type in MOVING_TYPES and j.mimic is not None and j.name not in held and j.mimic.joint in chain_joints:
             r.add(f"urdf joint {j.name!r} <mimic>", f"a joint without <mimic> on the chain from {base!r} to {tip!r} "
                   f"(it follows chain joint {j.mimic.joint!r}: derive's chain has one coordinate per joint); lock it "
                   f"(locked = {{ {j.name} = 0.0 }} under [arm]) or remove the <mimic>",

@@ -22,9 +22,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+from derive.cli import main
 from derive.dynamics.equations import derive_dynamics
 from derive.dynamics.program import lambdify
-from derive.errors import SpecError
 from derive.model.inertia_repair import nearest_physical
 from derive.model.fields import Reader
 from derive.model.spec import SPATIAL_DOWN, arm_from_dict, gravity_parameter, unit_direction
@@ -149,12 +149,13 @@ def test_corpus_arm_dynamics_match_pinocchio(arm: CorpusArm, tmp_path: Path) -> 
 
 
 @pytest.mark.parametrize("arm", [_param(a) for a in ARMS if a.expect == "refuse"])
-def test_corpus_arm_with_a_real_defect_is_refused_by_name(arm: CorpusArm) -> None:
-    """One clear refusal naming the defect (not a parser crash, not cut mid-word)."""
-    with pytest.raises(SpecError) as info:
-        arm_from_dict(arm_mapping(arm, 6), f"corpus {arm.name}", arm.urdf.parent)
-    assert arm.refusal in str(info.value)
-    assert "Traceback" not in str(info.value)
+def test_corpus_arm_with_a_real_defect_is_refused_by_name(arm: CorpusArm, tmp_path: Path, capsys) -> None:
+    """derive init gives one clear refusal naming the defect (exit 2, nothing written)."""
+    shutil.copy(arm.urdf, tmp_path / arm.file)
+    code = main(["init", str(tmp_path / arm.file), "--base", arm.base, "--tip", arm.tip, *arm.init_options])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("derive: error: ") and arm.refusal in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [arm.file]
 
 
 def test_the_corpus_has_what_the_issue_asks() -> None:

@@ -209,6 +209,13 @@ def run(args) -> int:
     if found is None:
         raise SpecError(str(urdf), [type(p)(p.field.replace("arm.base_link", "--base").replace(
             "arm.tip_link", "--tip"), p.expected, p.given) for p in r.problems])
+    import sympy as sp
+
+    from derive.model.spec import unmoved_inertia
+
+    values = {p.symbol: p.rational for p in found.chain.parameters}
+    if (problem := unmoved_inertia(found.chain, [sp.Integer(0)] * found.chain.n, values)) is not None:
+        raise SpecError(str(urdf), [problem])   # the starter file (no rotor inertia) would not load
     out = Path(args.out) if args.out else urdf.with_suffix(".toml")
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
     text = starter_text(rel, urdf.name, _name(robot.name or urdf.stem, args.name), base, tip, found.chain,

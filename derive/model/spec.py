@@ -469,17 +469,25 @@ def _direction(r: Reader, value: Any, size: int) -> tuple[Fraction, ...] | None:
 def _moves_inertia(r: Reader, arm: Arm) -> None:
     """Every joint must move some inertia at q = 0, else J is singular (issue 10, item 7)."""
     values = {p.symbol: p.rational for p in arm.parameters}
-    found = unmoved_joint(arm.chain, [terms(a)[2] for a in arm.actuators], values)
+    problem = unmoved_inertia(arm.chain, [terms(a)[2] for a in arm.actuators], values)
+    if problem is not None:
+        r.problems.append(problem)
+
+
+def unmoved_inertia(chain: Chain, reflected: list, values: dict) -> Problem | None:
+    """The problem of the first joint of ``chain`` that moves no inertia (J singular) with
+    the reflected rotor inertias ``reflected``, or None."""
+    found = unmoved_joint(chain, reflected, values)
     if found is None:
-        return
+        return None
     i, everywhere = found
     k = i + 1
-    joint = arm.chain.joints[i]
+    joint = chain.joints[i]
     moved = "a mass" if not joint.type.rotates else f"an inertia about joint {k}"
-    r.add(joint.field, f"{moved} > 0 at every configuration (else J(theta) is singular): mass beyond joint {k} "
-          f"away from its axis, a link inertia > 0 or a rotor_inertia > 0",
-          "0 (nothing beyond the joint has inertia about its axis" + (")" if everywhere else
-          " at theta = 0, where J is singular)"))
+    return Problem(joint.field, f"{moved} > 0 at every configuration (else J(theta) is singular): mass beyond "
+                   f"joint {k} away from its axis, a link inertia > 0 or a rotor_inertia > 0",
+                   "0 (nothing beyond the joint has inertia about its axis" + (")" if everywhere else
+                   " at theta = 0, where J is singular)"))
 
 
 def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:

@@ -296,3 +296,13 @@ def test_every_problem_of_the_handed_cases_is_one_spec_error(tmp_path: Path) -> 
         "T1": 0.0, "T2": 0.2, "w": [5.0]}}))
     with pytest.raises(SpecError, match=r"urdf joint 'jm' <mimic joint>: expected a mimic of a held joint"):
         derive.load_arm(path)
+
+
+def test_unknown_dynamics_attributes_of_many_joints_are_one_warning() -> None:
+    """The Panda's <dynamics D K mu_coulomb mu_viscous> (franka_ros extensions, not URDF) on 7
+    chain joints: one warning naming the joints and every attribute ignored."""
+    arm = derive.load_arm(DATA / "panda.toml")
+    assert [str(w) for w in arm.warnings] == [
+        "urdf joints 'panda_joint1', 'panda_joint2', 'panda_joint3', 'panda_joint4', ... (7 joints) <dynamics>: "
+        "expected the attributes URDF defines there (damping, friction), got also D='1', K='7000', "
+        "mu_coulomb='0', mu_viscous='16', not read"]

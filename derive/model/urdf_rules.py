@@ -239,7 +239,8 @@ def chain_mimics(r: Reader, path: list, held: dict[str, sp.Expr], chain_joints: 
                   f"<mimic joint={j.mimic.joint!r}>")
 
 
-def _bad(r: Reader, notes: list[str], strict: bool, field: str, expected: str, given: str) -> None:
+def _bad(r: Reader, notes: list[str], strict: bool, field: str, expected: str, given: str) -> sp.Expr | None:
+    """A problem of a joint that matters (None: not held), else a note and the joint held at 0."""
     if strict:
         r.add(field, expected, given)
     else:

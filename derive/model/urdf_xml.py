@@ -132,12 +132,13 @@ def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
 
     def copy(source: Element, target: Element, path: tuple[str, ...], owner: tuple[str, str]) -> None:
         attrs, children = READ[path]
+        unknown = [f"{attr}={_given(text)}" for attr, text in source.attrib.items() if attr not in attrs]
+        if unknown:
+            findings.append(Finding(*owner, Problem(f"urdf {owner[0]} {owner[1]!r} {_where(path)}".rstrip(),
+                            f"the attributes URDF defines there ({', '.join(attrs) or 'none'})",
+                            f"also {', '.join(unknown)}, not read"), dynamics=path in DYNAMICS))
         for attr, text in source.attrib.items():
             if attr not in attrs:
-                if len(path) > 1 or attr not in ("xmlns:xacro",):
-                    findings.append(Finding(*owner, Problem(f"urdf {owner[0]} {owner[1]!r} {_where(path)}".rstrip(),
-                                    f"the attributes URDF defines there ({', '.join(attrs) or 'none'})",
-                                    f"also {attr}={_given(text)}, not read"), dynamics=path in DYNAMICS))
                 continue
             count = attrs[attr]
             why = _problem_in_numbers(text, count) if count else None

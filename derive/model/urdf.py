@@ -255,7 +255,7 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     chain_joints = {j.name for j in path if j.type in MOVING and j.name not in locked and j.mimic is None}
     moving = moving_links(robot, base, chain_joints)
     matters = mattering_joints(robot, path, moving)
-    warnings = judge_findings(r, doc.findings, moving, matters, notes)
+    warnings = judge_findings(r, doc.findings, moving, matters, chain_joints, notes)
     repairs = check_inertials(r, robot, moving, repair, notes)
     held = held_values(r, robot, chain_joints, locked, on_path, matters, notes)
     chain_mimics(r, path, held, chain_joints, base, tip)

@@ -56,11 +56,12 @@ def mattering_joints(robot: Any, path: list, moving: set[str]) -> set[str]:
     return {j.name for j in path} | {j.name for j in robot.joints if j.child in moving}
 
 
-def judge_findings(r: Reader, findings: list[Finding], links: set[str], joints: set[str],
+def judge_findings(r: Reader, findings: list[Finding], links: set[str], joints: set[str], chain: set[str],
                    notes: list[str]) -> list[Problem]:
     """Bad numbers of what matters become problems of ``r``; ignored elements that may
     change the dynamics of what matters are returned as warnings (one per element and
-    kind of thing ignored, naming every link or joint); the rest become notes."""
+    kind of thing ignored, naming every link or joint; a ``<dynamics>`` only on a moving
+    chain joint of ``chain``: a held joint's damping changes nothing); the rest notes."""
     grouped: dict[tuple, list[str]] = {}
     for f in findings:
         matters = f.name in (links if f.kind == "link" else joints)
@@ -71,7 +72,8 @@ def judge_findings(r: Reader, findings: list[Finding], links: set[str], joints: 
                 notes.append(f"{f.problem.field} (not on the chain, not read): expected {f.problem.expected}, "
                              f"got {f.problem.given}")
             continue
-        key = (f.kind, f.problem.field.split("'", 2)[-1], f.problem.expected, f.problem.given, matters and f.dynamics)
+        dynamics = f.dynamics and (f.name in chain or "<dynamics>" not in f.problem.field)
+        key = (f.kind, f.problem.field.split("'", 2)[-1], f.problem.expected, f.problem.given, matters and dynamics)
         grouped.setdefault(key, []).append(f.name)
     warnings = []
     for (kind, where, expected, given, warn), names in grouped.items():

@@ -65,8 +65,8 @@ import sympy as sp
 from derive.errors import Problem
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
 from derive.model.fields import Reader, inline, show, to_fraction
-from derive.model.rigid import (axis_angle, body_from_com, empty_body, exact_angle, inertia_problem, merge, move,
-                                rational, rpy, tidy)
+from derive.model.rigid import (axis_angle, body_from_com, empty_body, exact_angle, merge, move, rational, rpy,
+                                tidy)
 from derive.model.urdf_rules import (chain_mimics, check_inertials, held_values, judge_findings, mattering_joints,
                                      moving_links, repair_choice)
 from derive.model.urdf_xml import parse_safely

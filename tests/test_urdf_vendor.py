@@ -306,3 +306,18 @@ def test_unknown_dynamics_attributes_of_many_joints_are_one_warning() -> None:
         "urdf joints 'panda_joint1', 'panda_joint2', 'panda_joint3', 'panda_joint4', ... (7 joints) <dynamics>: "
         "expected the attributes URDF defines there (damping, friction), got also D='1', K='7000', "
         "mu_coulomb='0', mu_viscous='16', not read"]
+
+
+def test_a_chain_joint_that_mimics_a_held_joint_is_held_too(tmp_path: Path) -> None:
+    """j2 on the chain mimics m (off the chain, locked at 0.3): j2 is held at 2 * 0.3 = 0.6,
+    so the chain has one moving joint; its pose follows (tip x = 0.1 cos 0.6 + ...)."""
+    parts = [link("base"), link("a"), link("b"), link("f"), joint("j1", "base", "a"),
+             joint("j2", "a", "b", extra='<mimic joint="m" multiplier="2"/>'), joint("m", "a", "f")]
+    found, problems = chain_of(write(tmp_path, *parts), "base", "b", locked={"m": 0.3})
+    assert not problems and [j.name for j in found.chain.joints] == ["j1"]
+    assert any("joint 'j2': follows its <mimic> 'm' (2 * 3/10 + 0): held at 3/5" in n for n in found.chain.notes)
+    num = NumericChain(found.chain)
+    hx = float(found.chain.bodies[0].first_moment[0].xreplace(found.chain.values()))
+    # 1 kg each at (0.1, 0, 0) of its link: a's own, b's turned by 0.6 about z, f's by 0.3
+    assert math.isclose(hx, 0.1 + 0.1 * math.cos(0.6) + 0.1 * math.cos(0.3), rel_tol=1e-12)
+    assert num.n == 1

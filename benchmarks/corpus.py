@@ -19,7 +19,6 @@ URDF load time. ``python -m benchmarks.corpus [--out DIR] [NAME ...]`` writes
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 import signal
@@ -31,6 +30,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from benchmarks import Goal, Section, table
+from derive.jsonio import dumps
 
 TITLE = "URDF corpus: every arm through every command"
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,12 +40,13 @@ STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wvla", "-O2"
 
 @dataclass
 class Step:
-    """One command of one arm: exit status, wall time [s], peak memory [MiB], what it said."""
+    """One command of one arm: exit status, wall time [s], peak memory [MiB] (None: not
+    measured: the C self-tests run several programs), what it said."""
 
     command: str
     ok: bool
     seconds: float
-    peak_mib: float
+    peak_mib: float | None
     detail: str = ""
 
 
@@ -58,7 +59,7 @@ class ArmResult:
     commands: list[Step] = field(default_factory=list)
 
 
-def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, float, float, str]:
+def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, float, float | None, str]:
     """(exit code or None on timeout, wall time, peak MiB, the last lines of stderr) of ``argv``."""
     start = time.perf_counter()
     with tempfile.TemporaryFile() as err:
@@ -78,7 +79,7 @@ def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None,
         err.seek(0)
         text = err.read().decode("utf-8", "replace")
     wall = time.perf_counter() - start
-    peak = usage.ru_maxrss / 1024 if usage is not None else float("nan")
+    peak = usage.ru_maxrss / 1024 if usage is not None else None
     return code, wall, peak, text
 
 
@@ -144,7 +145,8 @@ print("python self-check: J, G, gravity within 1e-9 at 5 states; mpc, npid, dobc
 '''
 
 
-def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float) -> tuple[int | None, float, float, str]:
+def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float
+                      ) -> tuple[int | None, float, float | None, str]:
     module = folder / "gen" / name / "python" / f"{name}.py"
     return run_command([sys.executable, "-c", _PY_CHECK, name, str(arm_file), str(module)], folder, timeout)
 
@@ -192,7 +194,7 @@ def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
             ok, detail = _c_selftests(folder, arm.name, timeout)
         except subprocess.TimeoutExpired:
             ok, detail = False, f"timed out after {timeout:.0f} s"
-        result.commands.append(Step("selftest-c", ok, time.perf_counter() - start, float("nan"), detail))
+        result.commands.append(Step("selftest-c", ok, time.perf_counter() - start, None, detail))
         code, wall, peak, text = _python_selfcheck(folder, arm.name, arm_file, timeout)
         result.commands.append(Step("selftest-python", code == 0, wall, peak,
                                     "" if code == 0 else f"exit {code}: {text[-600:]}"))
@@ -224,7 +226,7 @@ def _cell(result: ArmResult, command: str) -> str:
     c = next((c for c in result.commands if c.command == command), None)
     if c is None:
         return "-"
-    mem = "" if c.peak_mib != c.peak_mib else f", {c.peak_mib:.0f} MiB"
+    mem = "" if c.peak_mib is None else f", {c.peak_mib:.0f} MiB"
     mark = "" if c.ok else (" TIMEOUT" if "timed out" in c.detail else " FAIL")
     if c.ok and "refused" in c.detail:
         mark = " refused"
@@ -252,7 +254,7 @@ def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
             worst = max(times, key=lambda x: x[1])
             out.append(Goal(f"7-joint arms: {command} under {limit:g} s", all(ok and t < limit for _, t, ok in times),
                             f"slowest {worst[0]}: {worst[1]:.1f} s"))
-    peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib == c.peak_mib]
+    peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib is not None]
     if peaks:
         worst = max(peaks, key=lambda x: x[2])
         out.append(Goal("7-joint arms: every command under 1 GiB", worst[2] < 1024,
@@ -272,8 +274,8 @@ def main(argv: list[str]) -> int:
         out, argv = Path(argv[1]), argv[2:]
     results = run_corpus(tuple(argv))
     out.mkdir(parents=True, exist_ok=True)
-    (out / "corpus.json").write_text(json.dumps({"timeout_s": TIMEOUT, "arms": [asdict(r) for r in results]},
-                                                indent=1, default=lambda x: None) + "\n", encoding="utf-8")
+    (out / "corpus.json").write_text(dumps({"timeout_s": TIMEOUT, "arms": [asdict(r) for r in results]}),
+                                     encoding="utf-8")   # strict JSON (derive.jsonio)
     text = f"# URDF corpus\n\n{markdown(results, TIMEOUT)}\n\n" + "\n".join(g.line() for g in goals(results)) + "\n"
     (out / "corpus.md").write_text(text, encoding="utf-8")
     print(text)

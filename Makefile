@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: generate test fuzz bench venv clean system-deps embedded
+.PHONY: generate test fuzz bench corpus venv clean system-deps embedded
 
 venv: $(STAMP)
 
@@ -51,6 +51,15 @@ fuzz: $(STAMP) system-deps
 
 bench: $(STAMP)
 	$(PY) -m benchmarks
+
+# Every arm of tests/data/urdf/corpus (vendor URDFs) through init, show, check, generate (C and
+# Python self-tests), simulate and fmu --plant in a temporary folder, each command under
+# CORPUS_TIMEOUT seconds (default 900); wall time and peak memory per arm and command go to
+# build/corpus/corpus.md and corpus.json (benchmarks/corpus.py). `make corpus ARMS="ur3 ur10"`
+# runs some arms only.
+CORPUS_TIMEOUT ?= 900
+corpus: $(STAMP) system-deps
+	CORPUS_TIMEOUT=$(CORPUS_TIMEOUT) $(PY) -m benchmarks.corpus --out build/corpus $(ARMS)
 
 clean:
 	rm -rf $(VENV) build *.egg-info

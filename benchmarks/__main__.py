@@ -12,7 +12,7 @@ import platform
 import sys
 import time
 
-SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "observer", "spatial", "identify")
+SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "observer", "spatial", "identify", "corpus")
 
 
 def main(names: tuple[str, ...] = SECTIONS) -> int:

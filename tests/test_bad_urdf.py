@@ -96,7 +96,8 @@ CASES = [
     C("planar-on-chain", good(j1=joint("j1", "a", "b", "planar")), arm_keys(), ("urdf joint 'j1' type",),
       "a planar joint is not supported"),
     C("mimic-on-chain", good(j2=joint("j2", "b", "c", extra='<axis xyz="0 0 1"/><mimic joint="j1"/>')), arm_keys(),
-      ("urdf joint 'j2' <mimic>",), "a mimic joint is not supported", cli=True),
+      ("urdf joint 'j2' <mimic>",), "(it follows chain joint 'j1': derive's chain has one coordinate per joint); "
+      "lock it (locked = { j2 = 0.0 } under [arm]) or remove the <mimic>", cli=True),
     C("negative-mass", good(b=link("b", f'<mass value="-1.0"/>{BOX}')), arm_keys(),
       ("urdf link 'b' <inertial><mass value>",), ">= 0 (kg), got -1.0"),
     C("inertia-not-psd", good(b=link("b", '<mass value="1"/><inertia ixx="0.01" ixy="0.02" ixz="0" iyy="0.01" '
@@ -105,6 +106,18 @@ CASES = [
     C("inertia-triangle", good(c=link("c", '<mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" '
                                            'iyz="0" izz="0.03"/>')), arm_keys(),
       ("urdf link 'c' <inertial><inertia>",), "triangle inequality"),
+    C("xacro-number-on-chain", good(j2=joint("j2", "b", "c").replace('xyz="0 0 0.1"', 'xyz="${l} 0 0.1"')),
+      arm_keys(), ("urdf joint 'j2' <origin xyz>",), "3 numbers separated by spaces, got '${l} 0 0.1'", cli=True),
+    C("mimic-of-unknown-joint", good(j2=joint("j2", "b", "c", extra='<axis xyz="0 0 1"/><mimic joint="zz"/>')),
+      arm_keys(), ("urdf joint 'j2' <mimic joint>",), "revolute, continuous or prismatic joint of the URDF, got "
+      "'zz', an unknown joint", cli=True),
+    C("mimic-cycle", robot(*GOOD, link("f"), link("g"), joint("m", "c", "f", "prismatic",
+                                                              '<axis xyz="1 0 0"/><mimic joint="n"/>'),
+                           joint("n", "c", "g", "prismatic", '<axis xyz="1 0 0"/><mimic joint="m"/>')),
+      arm_keys(), ("urdf joint 'n' <mimic joint>",), "got 'm', a mimic cycle m -> n -> m", cli=True),
+    C("repair-negative-mass", good(b=link("b", f'<mass value="-1.0"/>{BOX}')), arm_keys(repair_inertia=True),
+      ("urdf link 'b' <inertial><mass value>",), "repair_inertia repairs the inertia tensor, not a negative mass, "
+      "got -1.0", cli=True),
     C("zero-axis", good(j1=joint("j1", "a", "b", extra='<axis xyz="0 0 0"/>')), arm_keys(),
       ("urdf joint 'j1' <axis xyz>",), "a non-zero axis"),
     C("nan-origin", good(j2=joint("j2", "b", "c").replace('xyz="0 0 0.1"', 'xyz="nan 0 0.1"')), arm_keys(),
@@ -174,3 +187,14 @@ def test_cli_reports_bad_urdf_exit_2(case: Case, tmp_path: Path):
     assert proc.stderr.startswith("derive: error: invalid arm description")
     assert all(f"  - {f}: expected " in proc.stderr for f in case.fields), proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_init_with_a_tip_below_a_floating_joint_exits_2_naming_it(tmp_path: Path):
+    """derive init r.urdf --tip c, c below a floating joint: one message, exit 2, nothing written."""
+    (tmp_path / "r.urdf").write_text(good(j2=joint("j2", "b", "c", "floating", "")), encoding="utf-8")
+    proc = subprocess.run([sys.executable, "-m", "derive", "init", "r.urdf", "--tip", "c"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and proc.stdout == ""
+    assert "urdf joint 'j2' type: expected revolute, continuous, prismatic or fixed on the chain from 'a' to 'c' " \
+           "(a floating joint is not supported" in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.urdf"]

@@ -66,14 +66,16 @@ def add_arm_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def load_cli_arm(args: argparse.Namespace) -> Arm:
-    """``args.arm`` loaded (derive.model.spec.load_arm), each plausibility warning printed on
-    stderr as ``derive: warning: <field>: expected ..., got ...``; with ``args.strict`` they
-    are one SpecError instead (exit 2, nothing done)."""
+    """``args.arm`` loaded (derive.model.spec.load_arm), each plausibility warning and each
+    element of a URDF that derive ignored although it may change the chain's dynamics
+    (``<dynamics><damping>``: :attr:`Arm.warnings`) printed on stderr as
+    ``derive: warning: <field>: expected ..., got ...``; with ``args.strict`` they are one
+    SpecError instead (exit 2, nothing done)."""
     from derive.model.plausibility import plausibility
     from derive.model.spec import load_arm
 
     arm = load_arm(args.arm)
-    problems = plausibility(arm)
+    problems = tuple(arm.warnings) + tuple(plausibility(arm))
     if problems and getattr(args, "strict", False):
         raise SpecError(arm.source, problems, title="implausible arm description (--strict)")
     for p in problems:

@@ -37,6 +37,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", help="the arm file to write (default: <urdf name>.toml beside the URDF); "
                         "never overwritten")
     parser.add_argument("--name", help="the arm's name (default: from the URDF's robot name)")
+    parser.add_argument("--repair-inertia", action="store_true",
+                        help="move each inertia of the chain that is not physical (not positive semi-definite, or "
+                        "breaking the triangle inequality) to the nearest physical one and write repair_inertia "
+                        "with their links into the arm file (default: refuse them)")
 
 
 def _name(robot: str, given: str | None) -> str:
@@ -103,8 +107,10 @@ def _limits_comment(joint) -> str:
     return "; ".join(parts) if parts else "no limits in the URDF"
 
 
-def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping) -> str:
-    """The arm file for a chain read from a URDF (see the module docstring)."""
+def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
+                 repaired: tuple[str, ...] = ()) -> str:
+    """The arm file for a chain read from a URDF (see the module docstring); ``repaired``:
+    the links whose inertia ``derive init --repair-inertia`` repaired."""
     n = chain.n
     lines = [
         f"# Arm file written by `derive init` from {urdf_name}. Values the URDF does not give are",
@@ -120,6 +126,8 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "gravity_direction = [0, 0, -1]  # assumption: the base link's z axis points up",
         'actuation = "torque"            # u is the motor torque [N m]: B = diag(gear_ratio), no back-EMF',
         "# locked = { joint_name = 0.0 } # hold joints (rad or m); joints off the chain are held at 0",
+    ] + ([f"repair_inertia = [{', '.join(chr(34) + x + chr(34) for x in repaired)}]  # their inertias are not "
+          "physical: moved to the nearest physical ones (see the notes below)"] if repaired else []) + [
         "",
         "# What reading the URDF did:",
     ]
@@ -189,21 +197,35 @@ def run(args) -> int:
 
     urdf = Path(args.urdf)
     r = Reader()
-    robot = parse_safely(r, str(urdf.resolve()), Path("/"), [])
+    doc = parse_safely(r, str(urdf.resolve()), Path("/"))
+    robot = None if doc is None else doc.robot
     if robot is None:
         raise SpecError(str(urdf), [type(p)(p.field.replace("arm.urdf", "urdf"), p.expected, p.given)
                                     for p in r.problems])
     base, tip = _ends(robot, args.base, args.tip)
-    table = {"urdf": str(urdf.resolve()), "base_link": base, "tip_link": tip}
+    table = {"urdf": str(urdf.resolve()), "base_link": base, "tip_link": tip,
+             "repair_inertia": bool(getattr(args, "repair_inertia", False))}
     found = urdf_chain(r, table, Path("/"), gravity_parameter(Fraction(981, 100)), unit_direction(SPATIAL_DOWN))
     if found is None:
         raise SpecError(str(urdf), [type(p)(p.field.replace("arm.base_link", "--base").replace(
             "arm.tip_link", "--tip"), p.expected, p.given) for p in r.problems])
+    import sympy as sp
+
+    from derive.model.spec import unmoved_inertia
+
+    values = {p.symbol: p.rational for p in found.chain.parameters}
+    if (problem := unmoved_inertia(found.chain, [sp.Integer(0)] * found.chain.n, values)) is not None:
+        raise SpecError(str(urdf), [problem])   # the starter file (no rotor inertia) would not load
     out = Path(args.out) if args.out else urdf.with_suffix(".toml")
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
     text = starter_text(rel, urdf.name, _name(robot.name or urdf.stem, args.name), base, tip, found.chain,
-                        found.damping)
+                        found.damping, found.repaired)
     _write_new(out, text)
+    for p in found.warnings:
+        print(f"derive: warning: {p}", file=sys.stderr)
+    for note in found.chain.notes:
+        if "inertia repaired" in note:
+            print(f"derive: note: {note}", file=sys.stderr)
     print(f"derive: wrote {out} ({found.chain.n} joints from {base!r} to {tip!r}); next: derive generate {out}",
           file=sys.stderr)
     return 0

@@ -122,6 +122,7 @@ class Arm:
     gravity_direction: tuple[Fraction, ...] = (Fraction(0), Fraction(-1))
     spatial: Chain | None = None          # the chain of a DH or URDF arm (planar arms: None)
     joint_friction: tuple[tuple[Fraction, str], ...] = ()   # DH/URDF: (bv, its field) per joint
+    warnings: tuple[Problem, ...] = field(default=(), compare=False)   # URDF: ignored elements on the chain
 
     @property
     def n(self) -> int:
@@ -342,8 +343,8 @@ TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_ma
             "sweep": None, "body_override": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
-            "urdf": None, "base_link": None, "tip_link": None, "locked": None}
-URDF_ONLY = ("base_link", "tip_link", "locked")
+            "urdf": None, "base_link": None, "tip_link": None, "locked": None, "repair_inertia": None}
+URDF_ONLY = ("base_link", "tip_link", "locked", "repair_inertia")
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None,
                    "observer_rate": None, "observer_structure": None, "momentum_gain": None}
@@ -413,7 +414,7 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
     head = _head(r, arm_table, 2 if kind == "planar" else 3)
     if base_dir is None:
         base_dir = Path(source).parent if not source.startswith("<") else Path.cwd()
-    links, point_masses, spatial, friction = [], [], None, ()
+    links, point_masses, spatial, friction, found = [], [], None, (), None
     g = gravity_parameter(head.gravity if head.gravity is not None else _ZERO)
     if kind == "planar":
         links = read_links(r, top.get("link"))
@@ -446,6 +447,10 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
     controller = _controller(r, top.get("controller", _MISSING), n)
     simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
     r.problems.extend(sim_problems if n else [])
+    if kind == "urdf" and found is not None and not sim_problems and "coulomb_friction" not in (
+            top.get("simulation") or {}):   # the URDF's <dynamics friction> is the default
+        simulation = replace(simulation, coulomb_friction=tuple(
+            float(f) if f is not None else c for f, c in zip(found.friction, simulation.coulomb_friction)))
     sweep, sweep_problems = parse_sweep(top.get("sweep"), n or 1)
     r.problems.extend(sweep_problems if n else [])
     if r.problems:
@@ -454,7 +459,8 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
               simulation=simulation, sweep=sweep, gravity_direction=head.direction or (
                   (Fraction(0), Fraction(-1)) if kind == "planar" else SPATIAL_DOWN),
-              spatial=spatial, joint_friction=friction)
+              spatial=spatial, joint_friction=friction,
+              warnings=found.warnings if kind == "urdf" and found is not None else ())
     _moves_inertia(r, arm)
     if r.problems:
         raise SpecError(printable(source), r.problems)
@@ -507,17 +513,25 @@ def _direction(r: Reader, value: Any, size: int) -> tuple[Fraction, ...] | None:
 def _moves_inertia(r: Reader, arm: Arm) -> None:
     """Every joint must move some inertia at q = 0, else J is singular (issue 10, item 7)."""
     values = {p.symbol: p.rational for p in arm.parameters}
-    found = unmoved_joint(arm.chain, [terms(a)[2] for a in arm.actuators], values)
+    problem = unmoved_inertia(arm.chain, [terms(a)[2] for a in arm.actuators], values)
+    if problem is not None:
+        r.problems.append(problem)
+
+
+def unmoved_inertia(chain: Chain, reflected: list, values: dict) -> Problem | None:
+    """The problem of the first joint of ``chain`` that moves no inertia (J singular) with
+    the reflected rotor inertias ``reflected``, or None."""
+    found = unmoved_joint(chain, reflected, values)
     if found is None:
-        return
+        return None
     i, everywhere = found
     k = i + 1
-    joint = arm.chain.joints[i]
+    joint = chain.joints[i]
     moved = "a mass" if not joint.type.rotates else f"an inertia about joint {k}"
-    r.add(joint.field, f"{moved} > 0 at every configuration (else J(theta) is singular): mass beyond joint {k} "
-          f"away from its axis, a link inertia > 0 or a rotor_inertia > 0",
-          "0 (nothing beyond the joint has inertia about its axis" + (")" if everywhere else
-          " at theta = 0, where J is singular)"))
+    return Problem(joint.field, f"{moved} > 0 at every configuration (else J(theta) is singular): mass beyond "
+                   f"joint {k} away from its axis, a link inertia > 0 or a rotor_inertia > 0",
+                   "0 (nothing beyond the joint has inertia about its axis" + (")" if everywhere else
+                   " at theta = 0, where J is singular)"))
 
 
 def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:

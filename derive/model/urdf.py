@@ -7,12 +7,19 @@
     base_link = "panda_link0"      # the chain runs from this link ...
     tip_link = "panda_hand_tcp"    # ... to this one
     locked = { panda_finger_joint1 = 0.0 }   # joints held at a value (rad or m)
+    repair_inertia = ["link2"]     # or true: non-physical inertias moved to the nearest physical one
 
-Reading: the file is checked by ``defusedxml`` first (no entity declarations,
-no external entities or DTDs: an entity-expansion bomb or
-``file:///etc/passwd`` is refused unexpanded), every number of the elements
-used is checked (finite, the right count) and named in a message, and the
-URDF is parsed by ``urdf_parser_py`` (ROS's reference Python parser).
+Reading (derive.model.urdf_xml): the file is checked by ``defusedxml`` first
+(no entity declarations, no external entities or DTDs: an entity-expansion
+bomb or ``file:///etc/passwd`` is refused unexpanded), cut down to what derive
+reads (transmissions, Gazebo tags, sensors, visual and collision meshes are
+dropped unread, with a note), every number of the elements used is checked
+(finite, the right count) and named in a message, and the URDF is parsed by
+``urdf_parser_py`` (ROS's reference Python parser). What does not move with
+the chain is read leniently, what does strictly (derive.model.urdf_rules): a
+bad number or a non-physical inertia there is an error (``repair_inertia``
+repairs the latter: derive.model.inertia_repair), an ignored element that may
+change the dynamics (``<dynamics><damping>``) a warning every command prints.
 
 Normalisation follows the URDF specification: ``rpy`` is fixed-axis X-Y-Z,
 R = Rz(yaw) Ry(pitch) Rx(roll) (angles within 1e-12 of k pi/2 are exact); an
@@ -25,10 +32,14 @@ specification says). Fixed joints are merged into the body of the moving joint
 above them (links after the last moving joint, such as a flange or tool,
 included); moving joints off the base-to-tip chain (gripper fingers) are locked
 at ``locked``'s value (default 0) and merged likewise; joints on the chain
-listed in ``locked`` are held too. Each of these steps is a sentence in
-:attr:`Chain.notes`. A ``mimic`` or a ``floating``/``planar`` joint on the
-chain is an error (not supported). Links above the base link do not move and
-are left out.
+listed in ``locked`` are held too; a held ``<mimic>`` joint follows its
+held master (value = multiplier * master + offset), a mimic of a moving chain
+joint is refused unless it moves no mass. Each of these steps is a sentence in
+:attr:`Chain.notes`. A ``floating``/``planar`` joint on the chain is an error
+(not supported). ``<dynamics damping>`` is the joint's viscous friction
+(motor.viscous_friction's default), ``<dynamics friction>`` the simulation's
+Coulomb friction (simulation.coulomb_friction's default). Links above the base
+link do not move and are left out.
 
 Numbers are exact: a decimal of the file is the Rational of the shortest
 decimal that reads back as the parser's double (the file's own text for up
@@ -43,7 +54,7 @@ Ixz, Iyy, Iyz, Izz), named m1, hx1, ..., Izz1; the kinematics are constants.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from difflib import get_close_matches
 from fractions import Fraction
 from pathlib import Path
@@ -51,10 +62,13 @@ from typing import Any
 
 import sympy as sp
 
+from derive.errors import Problem
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
 from derive.model.fields import Reader, inline, show, to_fraction
-from derive.model.rigid import (SNAP_TOLERANCE, angle_note, axis_angle, body_from_com, empty_body, exact_angle, inertia_problem, merge,
+from derive.model.rigid import (SNAP_TOLERANCE, angle_note, axis_angle, body_from_com, empty_body, exact_angle, merge,
                                 move, rational, rational_unit, rpy, tidy)
+from derive.model.urdf_rules import (chain_mimics, check_inertials, held_values, judge_findings, mattering_joints,
+                                     moving_links, repair_choice)
 from derive.model.urdf_xml import parse_safely
 
 MOVING = {"revolute": JointType.REVOLUTE, "continuous": JointType.CONTINUOUS, "prismatic": JointType.PRISMATIC}
@@ -65,11 +79,17 @@ _INERTIA_INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 @dataclass(frozen=True)
 class UrdfChain:
     """What a URDF gives an arm: its chain and, per moving joint, the viscous
-    damping of ``<dynamics damping>`` (0 when absent) and that element's field."""
+    damping of ``<dynamics damping>`` (0 when absent) and that element's field, the
+    Coulomb friction of ``<dynamics friction>`` (None when absent; the simulation's
+    default), the warnings (ignored elements that may change the dynamics of the
+    chain: printed by every command) and the links whose inertia was repaired."""
 
     chain: Chain
     damping: tuple[Fraction, ...]
     damping_fields: tuple[str, ...]
+    friction: tuple[Fraction | None, ...] = ()
+    warnings: tuple[Problem, ...] = ()
+    repaired: tuple[str, ...] = ()
 
 
 def _joint_field(name: str, what: str = "") -> str:
@@ -138,24 +158,6 @@ def _link_body(link: Any, log: list | None = None) -> Body:
     com = sp.Matrix([rational(x) for x in (o.xyz if o is not None and o.xyz else (0, 0, 0))])
     R = rpy(*_angles(o.rpy if o is not None else None, f"link {link.name!r} <inertial><origin rpy>", log))
     return body_from_com(m, com, I, R)
-
-
-def _check_inertials(r: Reader, robot: Any) -> None:
-    for link in robot.links:
-        inertial = link.inertial
-        if inertial is None:
-            continue
-        if inertial.mass is not None and inertial.mass < 0:
-            r.add(_link_field(link.name, "<inertial><mass value>"), "a finite number >= 0 (kg)", repr(inertial.mass))
-        t = inertial.inertia
-        if t is None:
-            continue
-        entries = [rational(getattr(t, k) or 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
-        I = sp.Matrix(3, 3, lambda i, j: entries[_INERTIA_INDEX.index((min(i, j), max(i, j)))])
-        why = inertia_problem(I)
-        if why is not None:
-            shown = " ".join(f"{k}={float(x):g}" for k, x in zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), entries))
-            r.add(_link_field(link.name, "<inertial><inertia>"), f"{why} (kg m^2, about the centre of mass)", shown)
 
 
 def _tree(r: Reader, robot: Any) -> dict[str, Any] | None:
@@ -231,16 +233,19 @@ def _locked(r: Reader, value: Any, robot: Any) -> dict[str, sp.Expr]:
 
 def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
     """The chain of the URDF named by the ``[arm]`` table ``d``, or None after
-    adding its problems (each naming the element or arm-file field) to ``r``."""
+    adding its problems (each naming the element or arm-file field) to ``r``.
+    What does not move with the chain is read leniently (derive.model.urdf_rules)."""
     notes: list[str] = []
-    robot = parse_safely(r, d.get("urdf"), base_dir, notes)
-    if robot is None:
+    doc = parse_safely(r, d.get("urdf"), base_dir)
+    if doc is None:
         return None
-    _check_inertials(r, robot)
+    robot = doc.robot
+    notes += doc.notes
     parent = _tree(r, robot)
     links = [link.name for link in robot.links]
     base, tip = _link_choice(r, d, "base_link", links), _link_choice(r, d, "tip_link", links)
     locked = _locked(r, d.get("locked"), robot)
+    repair = repair_choice(r, d.get("repair_inertia"), links)
     if parent is None or base is None or tip is None or r.problems:
         return None
     path, link = [], tip
@@ -254,18 +259,24 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     path.reverse()
     on_path = {j.name for j in path}
     for j in path:
-        if j.name in locked:
-            continue
-        if j.type in ("floating", "planar"):
+        if j.name not in locked and j.type in ("floating", "planar"):
             r.add(_joint_field(j.name, "type"), "revolute, continuous, prismatic or fixed on the chain from "
-                  f"{base!r} to {tip!r} (a {j.type} joint is not supported)", repr(j.type))
-        elif j.mimic is not None:
-            r.add(_joint_field(j.name, "<mimic>"), f"a joint without <mimic> on the chain from {base!r} to {tip!r} "
-                  "(a mimic joint is not supported: list it in locked to hold it)",
-                  f"<mimic joint={j.mimic.joint!r}>")
+                  f"{base!r} to {tip!r} (a {j.type} joint is not supported: choose a base link below it or a tip "
+                  "link above it)", repr(j.type))
     if r.problems:
         return None
-    return _build(r, robot, base, path, on_path, locked, notes, gravity, direction)
+    chain_joints = {j.name for j in path if j.type in MOVING and j.name not in locked and j.mimic is None}
+    moving = moving_links(robot, base, chain_joints)
+    matters = mattering_joints(robot, path, moving)
+    warnings = judge_findings(r, doc.findings, moving, matters, chain_joints, notes)
+    repairs = check_inertials(r, robot, moving, repair, notes)
+    held = held_values(r, robot, chain_joints, locked, on_path, matters, notes)
+    chain_mimics(r, path, held, chain_joints, base, tip)
+    if r.problems:
+        return None
+    found = _build(r, robot, base, path, on_path, held, notes, gravity, direction)
+    return None if found is None else replace(found, warnings=tuple(warnings),
+                                              repaired=tuple(name for name, _ in repairs))
 
 
 def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], locked: dict[str, sp.Expr],
@@ -278,6 +289,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     bodies: list[Body] = []
     members: list[list[str]] = []
     damping: list[Fraction] = []
+    friction: list[Fraction | None] = []
     merged, held = [], []
     log: list[tuple[str, str, str]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
     stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
@@ -295,10 +307,8 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
                 joints.append(Joint(j.name, MOVING[j.type], tidy(origin), axis, _limits(j), _joint_field(j.name)))
                 bodies.append(empty_body())
                 members.append([])
-                damping.append(Fraction(repr(float(j.dynamics.damping))) if j.dynamics is not None
-                               and j.dynamics.damping is not None else Fraction(0))
-                if j.dynamics is not None and j.dynamics.friction:
-                    notes.append(f"joint {j.name!r}: <dynamics friction> (Coulomb) is not modelled")
+                damping.append(_dynamics(j, "damping") or Fraction(0))
+                friction.append(_dynamics(j, "friction"))
                 stack.append((j.child, len(joints) - 1, Transform.identity()))
                 continue
             if j.type in MOVING or j.type in ("floating", "planar"):
@@ -319,6 +329,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
               "and base_link", "a chain of fixed joints only")
         return None
     notes += _angle_notes(log)
+    _dynamics_notes(joints, damping, friction, notes)
     if merged:
         notes.append(f"fixed joints merged into the body of the moving joint above them: {', '.join(merged)}")
     if held:
@@ -329,7 +340,29 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     params, symbolic = _parameters(bodies, members, joints)
     vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
     chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes))
-    return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints))
+    return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints),
+                     tuple(friction))
+
+
+_USE = {"damping": "the viscous friction bv (the default of motor.viscous_friction; G's damping term)",
+        "friction": "the Coulomb friction in the simulation and the plant FMU (the default of "
+                    "simulation.coulomb_friction), not part of the controller's model"}
+
+
+def _dynamics(j: Any, key: str) -> Fraction | None:
+    """``<dynamics damping|friction>`` of chain joint ``j`` (None: absent)."""
+    x = getattr(j.dynamics, key, None) if j.dynamics is not None else None
+    return None if x is None else Fraction(repr(float(x)))
+
+
+def _dynamics_notes(joints: list[Joint], damping: list[Fraction], friction: list[Fraction | None],
+                    notes: list[str]) -> None:
+    """One note per kind: which joints' <dynamics damping|friction> are used, and how."""
+    for key, values in (("damping", damping), ("friction", friction)):
+        given = [f"{j.name!r} {float(x):g}" for j, x in zip(joints, values) if x is not None and (x or key == "friction")]
+        if given:
+            notes.append(f"<dynamics {key}> of joint{'s' if len(given) > 1 else ''} {', '.join(given)} "
+                         f"{'are' if len(given) > 1 else 'is'} {_USE[key]}")
 
 
 def _limits(j: Any) -> Limits:

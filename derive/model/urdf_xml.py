@@ -1,32 +1,100 @@
-"""Reading a URDF file safely: size, hostile XML, numbers, then ``urdf_parser_py``.
+"""Reading a URDF file safely: size, hostile XML, what derive reads, numbers, then ``urdf_parser_py``.
 
 Order: the file is read (at most 16 MiB); ``defusedxml`` parses it with
 entity declarations and external references forbidden, so an
 entity-expansion bomb or an external entity (``file:///etc/passwd``) is
 refused before anything is expanded, and a DOCTYPE naming an external DTD is
-refused too; every number in the elements the chain uses is checked (the
-right count, finite) and a bad one named by its element and attribute; then
-``urdf_parser_py`` (ROS's URDF parser; its lxml parser sees only checked
-text) builds the robot. Messages the parser prints about unknown elements or
-attributes become notes.
+refused too. Then the document is cut down to what derive reads
+(:data:`READ`: each link's ``<inertial>``, each joint's origin, parent, child,
+axis, limit, dynamics and mimic): transmissions, Gazebo tags, sensors,
+materials, visual and collision geometry (meshes) are dropped unread, so a
+value in them that no parser could read (xArm6's unexpanded xacro
+``<mechanicalReduction>reduction</mechanicalReduction>``) never blocks, and
+one note counts what was dropped. An unknown element or attribute inside a
+read element is recorded as a :class:`Finding` (``dynamics`` when it sits
+where it may change the dynamics: ``<inertial>``, a joint's ``<origin>``,
+``<axis>``, ``<dynamics>``, ``<mimic>``; e.g. ``<dynamics><damping>100</damping>``,
+a child element that URDF does not define). Every number of the read
+elements is checked (the right count, finite); a bad one becomes a Finding
+naming its element and attribute and is replaced by zeros in what the parser
+sees. Whether a Finding is an error, a warning or a note is decided by
+:mod:`derive.model.urdf`, which knows the chain: strict where the element
+moves with the chain, a note elsewhere. Then ``urdf_parser_py`` (ROS's URDF
+parser; its lxml parser sees only the checked, cut-down text) builds the
+robot. Messages are shortened only at word boundaries (:func:`clip`).
 """
 from __future__ import annotations
 
 import math
+from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from xml.etree.ElementTree import Element, ParseError
+from xml.etree.ElementTree import Element, ParseError, SubElement, tostring
 
+from derive.errors import Problem
 from derive.model.fields import Reader, inline, show
 
 MAX_URDF_BYTES = 16 << 20
-# element path below <link> / <joint> -> its numeric attributes and their counts
-_LINK_NUMBERS = {("inertial", "origin"): {"xyz": 3, "rpy": 3}, ("inertial", "mass"): {"value": 1},
-                 ("inertial", "inertia"): {k: 1 for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}}
-_JOINT_NUMBERS = {("origin",): {"xyz": 3, "rpy": 3}, ("axis",): {"xyz": 3},
-                  ("limit",): {k: 1 for k in ("lower", "upper", "effort", "velocity")},
-                  ("dynamics",): {"damping": 1, "friction": 1}, ("mimic",): {"multiplier": 1, "offset": 1}}
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+# element path below <robot> -> {attribute read: how many numbers it holds (0: a name)}, children read
+READ: dict[tuple[str, ...], tuple[dict[str, int], tuple[str, ...]]] = {
+    ("link",): ({"name": 0}, ("inertial",)),
+    ("link", "inertial"): ({}, ("origin", "mass", "inertia")),
+    ("link", "inertial", "origin"): ({"xyz": 3, "rpy": 3}, ()),
+    ("link", "inertial", "mass"): ({"value": 1}, ()),
+    ("link", "inertial", "inertia"): ({k: 1 for k in INERTIA_KEYS}, ()),
+    ("joint",): ({"name": 0, "type": 0}, ("origin", "parent", "child", "axis", "limit", "dynamics", "mimic")),
+    ("joint", "origin"): ({"xyz": 3, "rpy": 3}, ()),
+    ("joint", "parent"): ({"link": 0}, ()),
+    ("joint", "child"): ({"link": 0}, ()),
+    ("joint", "axis"): ({"xyz": 3}, ()),
+    ("joint", "limit"): ({k: 1 for k in ("lower", "upper", "effort", "velocity")}, ()),
+    ("joint", "dynamics"): ({"damping": 1, "friction": 1}, ()),
+    ("joint", "mimic"): ({"joint": 0, "multiplier": 1, "offset": 1}, ()),
+}
+# URDF elements derive does not need (they never change the rigid-body dynamics)
+UNREAD = {("link",): ("visual", "collision"), ("joint",): ("calibration", "safety_controller")}
+# where an unknown element or attribute may change the dynamics (a warning when on the chain)
+DYNAMICS = {("link", "inertial"), ("link", "inertial", "origin"), ("link", "inertial", "mass"),
+            ("link", "inertial", "inertia"), ("joint", "origin"), ("joint", "axis"), ("joint", "dynamics"),
+            ("joint", "mimic")}
 FIELD = "arm.urdf"
+
+
+def clip(text: str, limit: int = 300) -> str:
+    """``text`` on one line, shortened to at most about ``limit`` characters at a word
+    boundary (never inside a word), with the count of what was left out."""
+    text = " ".join(text.split())
+    if len(text) <= limit:
+        return text
+    cut = text.rfind(" ", 0, limit)
+    if cut <= 0:
+        return f"a word of {len(text)} characters"
+    return f"{text[:cut]} ... ({len(text) - cut} more characters)"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """Something in the URDF derive did not use as written: a bad number (``number``) or
+    an unknown element or attribute. ``kind``, ``name``: the link or joint it belongs to;
+    ``dynamics``: it sits where it may change the dynamics."""
+
+    kind: str
+    name: str
+    problem: Problem
+    number: bool = False
+    dynamics: bool = False
+
+
+@dataclass
+class UrdfDocument:
+    """A URDF read by :func:`parse_safely`: the ``urdf_parser_py`` robot of what derive
+    reads, the notes (what was dropped unread), and the findings for the caller to judge."""
+
+    robot: Any
+    notes: list[str] = field(default_factory=list)
+    findings: list[Finding] = field(default_factory=list)
 
 
 def _problem_in_numbers(text: str, count: int) -> str | None:
@@ -43,22 +111,69 @@ def _problem_in_numbers(text: str, count: int) -> str | None:
     return None
 
 
-def check_numbers(r: Reader, root: Element) -> None:
-    """Every numeric attribute the chain reads: the right count of finite numbers."""
-    for kind, table in (("link", _LINK_NUMBERS), ("joint", _JOINT_NUMBERS)):
-        for element in root.findall(kind):
-            name = element.get("name")
-            for path, attrs in table.items():
-                for node in element.findall("/".join(path)):
-                    for attr, count in attrs.items():
-                        text = node.get(attr)
-                        if text is None:
-                            continue
-                        why = _problem_in_numbers(text, count)
-                        if why is not None:
-                            where = "".join(f"<{p}>" for p in path[:-1]) + f"<{path[-1]} {attr}>"
-                            r.add(f"urdf {kind} {name!r} {where}", why, repr(text) if len(text) <= 60
-                                  else repr(text[:60]) + "...")
+def _where(path: tuple[str, ...], attr: str | None = None) -> str:
+    inner = path[1:]
+    if not inner:
+        return f"<{path[0]} {attr}>" if attr else ""
+    return "".join(f"<{p}>" for p in inner[:-1]) + (f"<{inner[-1]} {attr}>" if attr else f"<{inner[-1]}>")
+
+
+def _given(text: str) -> str:
+    shown = clip(text, 60)
+    return repr(shown) if shown == " ".join(text.split()) else shown
+
+
+def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
+    """The part of ``root`` that derive reads (a new tree; numbers checked, bad ones
+    replaced by zeros), a note counting what was dropped, and the findings."""
+    out = Element("robot", {k: v for k, v in root.attrib.items() if k == "name"})
+    dropped: Counter[str] = Counter()
+    findings: list[Finding] = []
+
+    def copy(source: Element, target: Element, path: tuple[str, ...], owner: tuple[str, str]) -> None:
+        attrs, children = READ[path]
+        unknown = [f"{attr}={_given(text)}" for attr, text in source.attrib.items() if attr not in attrs]
+        if unknown:
+            findings.append(Finding(*owner, Problem(f"urdf {owner[0]} {owner[1]!r} {_where(path)}".rstrip(),
+                            f"the attributes URDF defines there ({', '.join(attrs) or 'none'})",
+                            f"also {', '.join(unknown)}, not read"), dynamics=path in DYNAMICS))
+        for attr, text in source.attrib.items():
+            if attr not in attrs:
+                continue
+            count = attrs[attr]
+            why = _problem_in_numbers(text, count) if count else None
+            if why is not None:
+                findings.append(Finding(*owner, Problem(f"urdf {owner[0]} {owner[1]!r} {_where(path, attr)}", why,
+                                                        _given(text)), number=True))
+                text = " ".join(["0"] * count)
+            target.set(attr, text)
+        for child in source:
+            if not isinstance(child.tag, str):
+                continue
+            if child.tag in children:
+                copy(child, SubElement(target, child.tag), path + (child.tag,), owner)
+            elif child.tag in UNREAD.get(path, ()):
+                dropped[f"<{child.tag}>"] += 1
+            else:
+                content = clip(" ".join(child.itertext()), 60)
+                findings.append(Finding(*owner, Problem(
+                    f"urdf {owner[0]} {owner[1]!r} {_where(path + (child.tag,))}",
+                    f"only the elements URDF defines inside <{path[-1]}> ({', '.join(children) or 'none'}; "
+                    + (f"<{path[-1]}> takes {', '.join(attrs)} as attributes" if attrs else "") + ")",
+                    f"an element <{child.tag}>{content}</{child.tag}>, not read"), dynamics=path in DYNAMICS))
+
+    for element in root:
+        if not isinstance(element.tag, str):
+            continue
+        if element.tag in ("link", "joint"):
+            copy(element, SubElement(out, element.tag), (element.tag,), (element.tag, element.get("name", "")))
+        else:
+            dropped[f"<{element.tag}>"] += 1
+    notes = []
+    if dropped:
+        counts = ", ".join(f"{n} {tag}" for tag, n in sorted(dropped.items(), key=lambda x: (-x[1], x[0])))
+        notes.append(f"not read (they do not change the rigid-body dynamics): {counts}")
+    return out, notes, findings
 
 
 def _read(r: Reader, value: Any, base_dir: Path) -> bytes | None:
@@ -108,10 +223,10 @@ def _safe_tree(r: Reader, raw: bytes) -> Element | None:
             return None
         root = safe.fromstring(raw, forbid_dtd=False, forbid_entities=True, forbid_external=True)
     except ParseError as exc:
-        r.add(FIELD, "well-formed XML (a URDF)", str(exc))
+        r.add(FIELD, "well-formed XML (a URDF)", clip(str(exc)))
         return None
     except ValueError as exc:   # e.g. an encoding the parser does not know
-        r.add(FIELD, "well-formed XML (a URDF)", str(exc))
+        r.add(FIELD, "well-formed XML (a URDF)", clip(str(exc)))
         return None
     if root.tag != "robot":
         r.add(FIELD, "a URDF: an XML document whose root element is <robot>", f"<{inline(root.tag)}>")
@@ -119,17 +234,16 @@ def _safe_tree(r: Reader, raw: bytes) -> Element | None:
     return root
 
 
-def parse_safely(r: Reader, value: Any, base_dir: Path, notes: list[str]) -> Any | None:
-    """The ``urdf_parser_py`` robot of the file ``value`` names, or None after adding problems."""
+def parse_safely(r: Reader, value: Any, base_dir: Path) -> UrdfDocument | None:
+    """The URDF file ``value`` names (relative to ``base_dir``) read as described in the
+    module docstring, or None after adding problems (file, XML, parser) to ``r``."""
     raw = _read(r, value, base_dir)
     if raw is None:
         return None
     root = _safe_tree(r, raw)
     if root is None:
         return None
-    check_numbers(r, root)
-    if r.problems:
-        return None
+    tree, notes, findings = cut_down(root)
     import urdf_parser_py.xml_reflection.core as core
     from urdf_parser_py.urdf import URDF
 
@@ -137,15 +251,11 @@ def parse_safely(r: Reader, value: Any, base_dir: Path, notes: list[str]) -> Any
     previous = core.on_error
     core.on_error = said.append
     try:
-        robot = URDF.from_xml_string(raw)
+        robot = URDF.from_xml_string(tostring(tree))
     except Exception as exc:  # noqa: BLE001 - the parser raises ParseError, ValueError, AssertionError, ...
-        first = str(exc).strip().splitlines()
-        r.add(FIELD, "a URDF that urdf_parser_py reads", f"{type(exc).__name__}: {' '.join(first)[:200]}")
+        r.add(FIELD, "a URDF that urdf_parser_py reads", clip(f"{type(exc).__name__}: {exc}"))
         return None
     finally:
         core.on_error = previous
-    for text in said[:5]:
-        notes.append(f"ignored by the URDF parser: {' '.join(text.split())}")
-    if len(said) > 5:
-        notes.append(f"ignored by the URDF parser: {len(said) - 5} more such elements or attributes")
-    return robot
+    notes += [f"the URDF parser said: {clip(text)}" for text in said]
+    return UrdfDocument(robot, notes, findings)

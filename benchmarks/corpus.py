@@ -1,0 +1,286 @@
+"""The URDF corpus through every command (``make corpus``; a section of ``make bench``).
+
+For every arm of tests/data/urdf/corpus/corpus.toml, in a temporary folder, as a
+user would: ``derive init`` (the arm's base, tip and init options; a ``locked``
+table written into the arm file after it), ``show``, ``check``, ``generate``,
+then the generated C self-tests (controller and plant, built with gcc under the
+strict flags of tests/cbuild.py) and the generated Python module's self-check
+(its mass matrix J, bias G with damping and gravity against derive's dynamics at 5 seeded states,
+and every controller step returning code 0 with finite outputs), ``simulate``
+(the starter file's own settings, no ``--force``) and ``fmu --plant``. Each
+command must exit 0, or, for an arm whose file has a real defect, ``init`` must
+give the one expected refusal (exit 2, the text of corpus.toml's ``refusal``, no
+traceback). Each command runs under a timeout (``CORPUS_TIMEOUT`` seconds,
+default 900); wall time and peak resident memory (``os.wait4``'s ru_maxrss of
+that command's process) are recorded per arm and command, beside Pinocchio's
+URDF load time. ``python -m benchmarks.corpus [--out DIR] [NAME ...]`` writes
+``DIR/corpus.json`` and ``DIR/corpus.md`` (default DIR: build/corpus) and exits
+1 when a command failed.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from benchmarks import Goal, Section, table
+from derive.jsonio import dumps
+
+TITLE = "URDF corpus: every arm through every command"
+ROOT = Path(__file__).resolve().parents[1]
+TIMEOUT = float(os.environ.get("CORPUS_TIMEOUT", "900"))
+STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wvla", "-O2"]
+
+
+@dataclass
+class Step:
+    """One command of one arm: exit status, wall time [s], peak memory [MiB] (None: not
+    measured: the C self-tests run several programs), what it said."""
+
+    command: str
+    ok: bool
+    seconds: float
+    peak_mib: float | None
+    detail: str = ""
+
+
+@dataclass
+class ArmResult:
+    name: str
+    joints: int | None
+    expect: str
+    pinocchio_load_s: float | None
+    commands: list[Step] = field(default_factory=list)
+
+
+def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, float, float | None, str]:
+    """(exit code or None on timeout, wall time, peak MiB, the last lines of stderr) of ``argv``."""
+    start = time.perf_counter()
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+        code, usage = None, None
+        while True:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                code = os.waitstatus_to_exitcode(status)
+                break
+            if time.perf_counter() - start > timeout:
+                os.killpg(proc.pid, signal.SIGKILL)
+                _, status, usage = os.wait4(proc.pid, 0)
+                break
+            time.sleep(0.05)
+        proc.returncode = code if code is not None else -9
+        err.seek(0)
+        text = err.read().decode("utf-8", "replace")
+    wall = time.perf_counter() - start
+    peak = usage.ru_maxrss / 1024 if usage is not None else None
+    return code, wall, peak, text
+
+
+def _derive(*args: str) -> list[str]:
+    return [sys.executable, "-m", "derive", *args]
+
+
+def _write_locked(arm_file: Path, locked: dict) -> None:
+    """Put ``locked = {...}`` under [arm], where the starter file's comment suggests it."""
+    text = arm_file.read_text(encoding="utf-8")
+    entries = ", ".join(f"{k} = {float(v)!r}" for k, v in locked.items())
+    line = next(x for x in text.splitlines() if x.startswith("# locked = "))
+    arm_file.write_text(text.replace(line, f"locked = {{ {entries} }}", 1), encoding="utf-8")
+
+
+def _c_selftests(folder: Path, name: str, timeout: float) -> tuple[bool, str]:
+    c = folder / "gen" / name / "c"
+    library = [c / f"{name}.c", c / f"{name}_kernels.c", c / f"{name}_plant.c"]
+    said = []
+    for test in ("selftest", "plant_selftest"):
+        exe = folder / f"{name}_{test}"
+        build = subprocess.run(["gcc", *STRICT, "-o", str(exe), str(c / f"{name}_{test}.c"), *map(str, library),
+                                "-lm"], capture_output=True, text=True, timeout=timeout)
+        if build.returncode != 0:
+            return False, f"{test}: gcc failed: {build.stderr[-500:]}"
+        proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=timeout)
+        last = re.search(r"^(\d+) passed, (\d+) failed$", proc.stdout, re.M)
+        if proc.returncode != 0 or last is None or last[2] != "0":
+            return False, f"{test}: exit {proc.returncode}, {proc.stdout[-300:]}"
+        said.append(f"{test}: {last[0]}")
+    return True, "; ".join(said)
+
+
+_PY_CHECK = r'''
+import importlib.util, sys, numpy as np
+from derive.dynamics.equations import derive_dynamics
+from derive.dynamics.program import lambdify
+from derive.model.spec import load_arm
+name, arm_file, module = sys.argv[1:4]
+spec = importlib.util.spec_from_file_location(name, module); m = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(m)
+dyn = derive_dynamics(load_arm(arm_file))
+sy = [s for s, _ in dyn.values]; va = [float(v) for _, v in dyn.values]; n = dyn.n
+f = lambdify([*dyn.sym.theta, *dyn.sym.dtheta, *sy], list(dyn.J) + list(dyn.G) + list(dyn.gravity))
+rng = np.random.default_rng(5)
+for k in range(5):
+    q, v = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
+    ref = np.array(f(*q, *v, *va), dtype=float)
+    outs = [m.mass_matrix(q), m.bias(q, v), m.gravity(q)]
+    assert all(c == m.OK for c, _ in outs), outs
+    got = np.concatenate([np.ravel(x) for _, x in outs])
+    scale = max(np.max(np.abs(ref)), 1e-300)
+    assert np.max(np.abs(got - ref)) <= 1e-9 * scale, (k, np.max(np.abs(got - ref)), scale)
+    inp = m.Input(q, v, q + 0.1, np.zeros(n), np.zeros(n))
+    code, u, _ = m.mpc_step(inp)
+    assert code == m.OK and np.all(np.isfinite(u)), ("mpc_step", code, u)
+    for form, State in (("npid", m.NpidState), ("dobc", m.DobcState), ("mom", m.MomState)):
+        state = State()
+        assert getattr(m, form + "_init")(state, inp) == m.OK, form + "_init"
+        code, u, _ = getattr(m, form + "_step")(state, inp, 0.001)
+        assert code == m.OK and np.all(np.isfinite(u)), (form + "_step", code, u)
+print("python self-check: J, G, gravity within 1e-9 at 5 states; mpc, npid, dobc, mom steps OK")
+'''
+
+
+def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float
+                      ) -> tuple[int | None, float, float | None, str]:
+    module = folder / "gen" / name / "python" / f"{name}.py"
+    return run_command([sys.executable, "-c", _PY_CHECK, name, str(arm_file), str(module)], folder, timeout)
+
+
+def _pinocchio_load(urdf: Path) -> float | None:
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    start = time.perf_counter()
+    pin.buildModelFromUrdf(str(urdf))
+    return time.perf_counter() - start
+
+
+def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
+    """Every command on the corpus arm ``arm`` (tests/corpus.CorpusArm), its URDF already in ``folder``."""
+    result = ArmResult(arm.name, None, arm.expect, _pinocchio_load(arm.urdf))
+    arm_file = folder / f"{arm.name}.toml"
+
+    def step(command: str, argv: list[str], refuse: str = "") -> bool:
+        code, wall, peak, text = run_command(argv, folder, timeout)
+        if code is None:
+            ok, detail = False, f"timed out after {timeout:.0f} s"
+        elif refuse:
+            ok = code == 2 and refuse in text and "Traceback" not in text
+            detail = f"refused (exit {code}) as expected" if ok else f"exit {code}: {text[-600:]}"
+        else:
+            ok, detail = code == 0, "" if code == 0 else f"exit {code}: {text[-600:]}"
+        result.commands.append(Step(command, ok, wall, peak, detail))
+        return ok and not refuse
+
+    init = _derive("init", arm.file, "--base", arm.base, "--tip", arm.tip, "--name", arm.name, "--out",
+                   arm_file.name, *arm.init_options)
+    if not step("init", init, arm.refusal if arm.expect == "refuse" else ""):
+        return result
+    if arm.locked:
+        _write_locked(arm_file, arm.locked)
+    found = re.search(r"^\[\[motor\]\]", arm_file.read_text(encoding="utf-8"), re.M)
+    result.joints = arm_file.read_text(encoding="utf-8").count("[[motor]]") if found else None
+    step("show", _derive("show", arm_file.name))
+    step("check", _derive("check", arm_file.name))
+    if step("generate", _derive("generate", arm_file.name, "--out", "gen")):
+        start = time.perf_counter()
+        try:
+            ok, detail = _c_selftests(folder, arm.name, timeout)
+        except subprocess.TimeoutExpired:
+            ok, detail = False, f"timed out after {timeout:.0f} s"
+        result.commands.append(Step("selftest-c", ok, time.perf_counter() - start, None, detail))
+        code, wall, peak, text = _python_selfcheck(folder, arm.name, arm_file, timeout)
+        result.commands.append(Step("selftest-python", code == 0, wall, peak,
+                                    "" if code == 0 else f"exit {code}: {text[-600:]}"))
+    step("simulate", _derive("simulate", arm_file.name, "--out", "sim", "--json", "metrics.json"))
+    step("fmu --plant", _derive("fmu", arm_file.name, "--plant", "--out", "fmu"))
+    return result
+
+
+def run_corpus(names: tuple[str, ...] = (), timeout: float = TIMEOUT) -> list[ArmResult]:
+    sys.path.insert(0, str(ROOT))
+    from tests.corpus import corpus_arms
+
+    results = []
+    for arm in corpus_arms():
+        if names and arm.name not in names:
+            continue
+        with tempfile.TemporaryDirectory(prefix=f"corpus-{arm.name}-") as tmp:
+            (Path(tmp) / arm.file).write_bytes(arm.urdf.read_bytes())
+            results.append(run_arm(arm, Path(tmp), timeout))
+        print(f"corpus: {arm.name}: " + ", ".join(f"{c.command} {'ok' if c.ok else 'FAILED'} {c.seconds:.1f} s"
+                                                   for c in results[-1].commands), file=sys.stderr, flush=True)
+    return results
+
+
+COLUMNS = ("init", "show", "check", "generate", "selftest-c", "selftest-python", "simulate", "fmu --plant")
+
+
+def _cell(result: ArmResult, command: str) -> str:
+    c = next((c for c in result.commands if c.command == command), None)
+    if c is None:
+        return "-"
+    mem = "" if c.peak_mib is None else f", {c.peak_mib:.0f} MiB"
+    mark = "" if c.ok else (" TIMEOUT" if "timed out" in c.detail else " FAIL")
+    if c.ok and "refused" in c.detail:
+        mark = " refused"
+    return f"{c.seconds:.1f} s{mem}{mark}"
+
+
+def markdown(results: list[ArmResult], timeout: float) -> str:
+    rows = [[r.name, r.joints if r.joints is not None else "-",
+             "-" if r.pinocchio_load_s is None else f"{r.pinocchio_load_s * 1e3:.1f} ms"]
+            + [_cell(r, c) for c in COLUMNS] for r in results]
+    failures = [f"- {r.name} `{c.command}`: {c.detail}" for r in results for c in r.commands if not c.ok]
+    return "\n\n".join([
+        table(("arm", "joints", "Pinocchio load") + COLUMNS, rows),
+        f"Wall time and peak memory per command (timeout {timeout:.0f} s per command).",
+        "Failures:\n\n" + "\n".join(failures) if failures else "No failures."])
+
+
+def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
+    """Issue 19's goals for 7-joint arms: show < 5 s, check < 30 s, generate < 15 s, < 1 GiB."""
+    out = []
+    seven = [r for r in results if r.joints == 7]
+    for command, limit in (("show", 5.0), ("check", 30.0), ("generate", 15.0), ("fmu --plant", 30.0)):
+        times = [(r.name, c.seconds, c.ok) for r in seven for c in r.commands if c.command == command]
+        if times:
+            worst = max(times, key=lambda x: x[1])
+            out.append(Goal(f"7-joint arms: {command} under {limit:g} s", all(ok and t < limit for _, t, ok in times),
+                            f"slowest {worst[0]}: {worst[1]:.1f} s"))
+    peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib is not None]
+    if peaks:
+        worst = max(peaks, key=lambda x: x[2])
+        out.append(Goal("7-joint arms: every command under 1 GiB", worst[2] < 1024,
+                        f"largest {worst[0]} {worst[1]}: {worst[2]:.0f} MiB"))
+    return tuple(out)
+
+
+def run() -> Section:
+    """The ``make bench`` section: every corpus arm, every command."""
+    results = run_corpus()
+    return Section(TITLE, (markdown(results, TIMEOUT),), goals(results))
+
+
+def main(argv: list[str]) -> int:
+    out = Path("build/corpus")
+    if argv[:1] == ["--out"]:
+        out, argv = Path(argv[1]), argv[2:]
+    results = run_corpus(tuple(argv))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "corpus.json").write_text(dumps({"timeout_s": TIMEOUT, "arms": [asdict(r) for r in results]}),
+                                     encoding="utf-8")   # strict JSON (derive.jsonio)
+    text = f"# URDF corpus\n\n{markdown(results, TIMEOUT)}\n\n" + "\n".join(g.line() for g in goals(results)) + "\n"
+    (out / "corpus.md").write_text(text, encoding="utf-8")
+    print(text)
+    return 1 if any(not c.ok for r in results for c in r.commands) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

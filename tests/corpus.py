@@ -1,0 +1,87 @@
+"""The URDF corpus (tests/data/urdf/corpus/corpus.toml) as data: the arms, their arm-file
+mappings and the Pinocchio model of each with the same held joints (shared by
+tests/test_corpus.py and benchmarks/corpus.py)."""
+from __future__ import annotations
+
+import tomllib
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+CORPUS = Path(__file__).parent / "data" / "urdf" / "corpus"
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+@dataclass(frozen=True)
+class CorpusArm:
+    """One entry of corpus.toml (its header comment says what each key means)."""
+
+    name: str
+    file: str
+    base: str
+    tip: str
+    expect: str
+    pipeline: str
+    refusal: str = ""
+    init_options: tuple[str, ...] = ()
+    locked: dict = field(default_factory=dict, hash=False, compare=False)
+    slow_load: bool = False
+
+    @property
+    def urdf(self) -> Path:
+        return CORPUS / self.file
+
+    @property
+    def repair(self) -> bool:
+        return "--repair-inertia" in self.init_options
+
+
+def corpus_arms() -> list[CorpusArm]:
+    """Every arm of corpus.toml, in file order."""
+    data = tomllib.loads((CORPUS / "corpus.toml").read_text(encoding="utf-8"))
+    return [CorpusArm(**{**a, "init_options": tuple(a.get("init_options", ()))}) for a in data["arm"]]
+
+
+def arm_mapping(arm: CorpusArm, n: int | None = None) -> dict:
+    """The arm-file mapping of ``arm`` (torque actuation, gravity 9.81 along -z of the
+    base, the controller settings of derive init), for derive.model.spec.arm_from_dict."""
+    table = {"name": "corpus", "urdf": str(arm.urdf), "base_link": arm.base, "tip_link": arm.tip,
+             "gravity": 9.81, "gravity_direction": [0, 0, -1], "actuation": "torque"}
+    if arm.locked:
+        table["locked"] = dict(arm.locked)
+    if arm.repair:
+        table["repair_inertia"] = True
+    return {"arm": table, "controller": {"T1": 0.0, "T2": 0.2, "w": [5.0] * (n or 1)}}
+
+
+def held_values(arm: CorpusArm, moving: list[str]) -> dict[str, float]:
+    """Every moving joint of the URDF not in ``moving``, at its URDF value: locked's, a
+    mimic's multiplier * master + offset (followed through mimics of mimics), else 0.
+    Read from the XML directly, independently of derive's reader."""
+    root = ET.parse(arm.urdf).getroot()
+    joints = {j.get("name"): j for j in root.findall("joint")}
+
+    def value(name: str, depth: int = 0) -> float:
+        if name in arm.locked:
+            return float(arm.locked[name])
+        mimic = joints[name].find("mimic")
+        if mimic is None or depth > len(joints):
+            return 0.0
+        return (float(mimic.get("multiplier", 1.0)) * value(mimic.get("joint"), depth + 1)
+                + float(mimic.get("offset", 0.0)))
+    return {name: value(name) for name, j in joints.items()
+            if j.get("type") in ("revolute", "continuous", "prismatic") and name not in moving}
+
+
+def urdf_with_inertias(arm: CorpusArm, tensors: dict[str, tuple], folder: Path) -> Path:
+    """A copy of the arm's URDF in ``folder`` with the <inertia> of the links in
+    ``tensors`` (link -> six entries) replaced: what a repaired file would say."""
+    tree = ET.parse(arm.urdf)
+    for link in tree.getroot().findall("link"):
+        if link.get("name") in tensors:
+            node = link.find("inertial/inertia")
+            for key, x in zip(INERTIA_KEYS, tensors[link.get("name")]):
+                node.set(key, repr(float(x)))
+    path = folder / arm.file
+    tree.write(path)
+    return path

@@ -19,7 +19,7 @@ import sympy as sp
 
 from derive import jsonio
 from derive.cli import check
-from derive.proofs import arm as proofs_arm, paper as pp, project as proofs_project
+from derive.proofs import arm as proofs_arm, dynamics as proofs_dynamics, paper as pp, project as proofs_project
 from derive.proofs.exact import Field, Undecidable
 from derive.dynamics.identities import is_zero
 from derive.proofs.core import Kind, Obligation, Outcome, Result, Status, equal, exit_code, positive, run
@@ -37,7 +37,7 @@ def results(paper):
 
 
 def _project_only(d) -> tuple[Result, ...]:
-    return run(proofs_project.OBLIGATIONS + proofs_arm.OBLIGATIONS, d)
+    return run(proofs_project.OBLIGATIONS + proofs_arm.OBLIGATIONS + proofs_dynamics.OBLIGATIONS, d)
 
 
 def _point(cex) -> dict:

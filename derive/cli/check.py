@@ -30,9 +30,11 @@ def project_obligations() -> tuple[Obligation, ...]:
     """The obligations about an arm's derivation (kind ``project``), in reading order."""
     from derive.proofs import arm as proofs_arm
     from derive.proofs import certificate as proofs_certificate
+    from derive.proofs import dynamics as proofs_dynamics
     from derive.proofs import project as proofs_project
 
-    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS, *proofs_certificate.OBLIGATIONS)
+    return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS, *proofs_dynamics.OBLIGATIONS,
+            *proofs_certificate.OBLIGATIONS)
 
 
 def paper_obligations() -> tuple[Obligation, ...]:

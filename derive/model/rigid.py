@@ -10,10 +10,13 @@ Numbers enter as rationals, so that the cost of everything downstream (the
 derivation, its proofs, its display) does not depend on how a file writes them:
 
 * a decimal is the Rational of its shortest decimal (the file's own text);
-* an angle within ``SNAP_TOLERANCE`` (1e-9 rad) of a multiple of pi/2 is that
-  multiple (ROS files write pi/2 as 1.57079632679, 4.9e-12 rad off), so its
-  rotation has exact 0 and +-1 entries; :func:`angle_note` says what was
-  snapped and which near miss (1.5708, 3.7e-6 rad off) was kept as written;
+* an angle within ``SNAP_TOLERANCE`` (1e-8 rad, a 10 nm displacement at a metre,
+  far below any machining tolerance) of a multiple of pi/2 is that multiple: ROS
+  files write pi/2 with 8 to 12 decimals (1.57079632679 is 4.9e-12 rad off,
+  1.57079633 3.2e-9), so their rotations have exact 0 and +-1 entries;
+  :func:`angle_note` says what was snapped and which near miss was kept as written
+  (1.5708, 3.7e-6 rad off, or 1.57079: a rounding that cannot be told from a
+  deliberate angle, so it is not snapped);
 * a constant rotation whose entries are not all rational (cos and sin of a
   decimal angle, of pi/3, a rotation about a non-unit-rational axis) is the
   rotation of the integer quaternion nearest its own scaled by 2^60
@@ -43,7 +46,7 @@ import sympy as sp
 
 from derive.model.chain import Body, Transform
 
-SNAP_TOLERANCE = 1e-9    # rad: an angle this close to k pi/2 is k pi/2 exactly
+SNAP_TOLERANCE = 1e-8    # rad: an angle this close to k pi/2 is k pi/2 exactly
 NEAR_MISS = 1e-3         # rad: an angle this close to k pi/2 but not snapped is reported
 ROTATION_BITS = 60       # integer quaternions and stereographic coordinates to 2^-60
 ROTATION_ERROR = 4e-18   # the stated bound of a rationalised rotation or unit vector (entry-wise)

@@ -36,10 +36,21 @@ from derive.proofs.exact import Undecidable
 Poly = flint.fmpq_mpoly
 
 
-class Torus:
-    """Q[c_i, s_i (``angles``), x (``others``)] and the zero test modulo c_i^2 + s_i^2 - 1."""
+class TooLarge(Undecidable):
+    """A polynomial grew past the ring's term limit (the proof's budget)."""
 
-    def __init__(self, angles: Sequence[sp.Symbol], others: Iterable[sp.Symbol]) -> None:
+
+class Torus:
+    """Q[c_i, s_i (``angles``), x (``others``)] and the zero test modulo c_i^2 + s_i^2 - 1.
+
+    A product of more than ``REDUCE_ABOVE`` terms is reduced as it is formed (on arms whose
+    constant rotations are not multiples of pi/2 the free c, s otherwise swell 100-fold);
+    a polynomial of more than ``limit`` terms raises :class:`TooLarge`."""
+
+    REDUCE_ABOVE = 300
+
+    def __init__(self, angles: Sequence[sp.Symbol], others: Iterable[sp.Symbol], limit: int | None = None) -> None:
+        self.limit = limit
         self.angles = tuple(angles)
         self.others = tuple(sorted(set(others) - set(self.angles), key=sp.default_sort_key))
         m = len(self.angles)
@@ -78,6 +89,10 @@ class Torus:
     def convert(self, exprs: Iterable[sp.Expr]) -> list[Poly]:
         return [self(e) for e in exprs]
 
+    def forget(self) -> None:
+        """Drop the polynomials of the subexpressions converted so far (keep the ring)."""
+        self._memo.clear()
+
     def _node(self, e: sp.Basic) -> Poly | None:
         if e.is_Rational:
             return self.number(e)
@@ -96,17 +111,24 @@ class Torus:
             out = args[0]
             for a in args[1:]:
                 out = out + a
-            return out
+            return out if self.limit is None or len(out) <= self.limit else self._settle(out)
         if e.is_Mul:
             out = args[0]
             for a in args[1:]:
                 out = out * a
-            return out
+            return self._settle(out)
         if e.is_Pow and e.exp.is_Integer and e.exp >= 0:
-            return args[0] ** int(e.exp)
+            return self._settle(args[0] ** int(e.exp))
         if e.is_Pow and e.base.is_Rational and e.exp.is_Integer:
             return self.number(e)
         raise Undecidable(f"not a polynomial in the symbols and sin/cos of the angles: {e}")
+
+    def _settle(self, p: Poly) -> Poly:
+        if len(p) > self.REDUCE_ABOVE:
+            p = self.reduce(p)
+        if self.limit is not None and len(p) > self.limit:
+            raise TooLarge(f"a polynomial of {len(p)} terms, over the proof's budget of {self.limit}")
+        return p
 
     def _trig(self, e: sp.Basic) -> Poly:
         arg = e.args[0]

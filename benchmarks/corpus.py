@@ -48,6 +48,7 @@ class Step:
     seconds: float
     peak_mib: float | None
     detail: str = ""
+    cpu_seconds: float | None = None   # user + system time of the command's process and its children
 
 
 @dataclass
@@ -59,8 +60,13 @@ class ArmResult:
     commands: list[Step] = field(default_factory=list)
 
 
-def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, float, float | None, str]:
-    """(exit code or None on timeout, wall time, peak MiB, the last lines of stderr) of ``argv``."""
+Run = tuple[int | None, float, float | None, str, float | None]
+
+
+def run_command(argv: list[str], cwd: Path, timeout: float) -> Run:
+    """(exit code or None on timeout, wall time, peak MiB, the last lines of stderr, CPU time) of
+    ``argv``: the CPU time is user + system of the command's process (os.wait4), the figure the
+    goals read (the wall time of a shared machine measures the other loads as much as the command)."""
     start = time.perf_counter()
     with tempfile.TemporaryFile() as err:
         proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
@@ -80,7 +86,8 @@ def run_command(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None,
         text = err.read().decode("utf-8", "replace")
     wall = time.perf_counter() - start
     peak = usage.ru_maxrss / 1024 if usage is not None else None
-    return code, wall, peak, text
+    cpu = usage.ru_utime + usage.ru_stime if usage is not None else None
+    return code, wall, peak, text, cpu
 
 
 def _derive(*args: str) -> list[str]:
@@ -145,8 +152,7 @@ print("python self-check: J, G, gravity within 1e-9 at 5 states; mpc, npid, dobc
 '''
 
 
-def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float
-                      ) -> tuple[int | None, float, float | None, str]:
+def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float) -> Run:
     module = folder / "gen" / name / "python" / f"{name}.py"
     return run_command([sys.executable, "-c", _PY_CHECK, name, str(arm_file), str(module)], folder, timeout)
 
@@ -167,7 +173,7 @@ def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
     arm_file = folder / f"{arm.name}.toml"
 
     def step(command: str, argv: list[str], refuse: str = "") -> bool:
-        code, wall, peak, text = run_command(argv, folder, timeout)
+        code, wall, peak, text, cpu = run_command(argv, folder, timeout)
         if code is None:
             ok, detail = False, f"timed out after {timeout:.0f} s"
         elif refuse:
@@ -175,7 +181,7 @@ def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
             detail = f"refused (exit {code}) as expected" if ok else f"exit {code}: {text[-600:]}"
         else:
             ok, detail = code == 0, "" if code == 0 else f"exit {code}: {text[-600:]}"
-        result.commands.append(Step(command, ok, wall, peak, detail))
+        result.commands.append(Step(command, ok, wall, peak, detail, cpu))
         return ok and not refuse
 
     init = _derive("init", arm.file, "--base", arm.base, "--tip", arm.tip, "--name", arm.name, "--out",
@@ -195,9 +201,9 @@ def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
         except subprocess.TimeoutExpired:
             ok, detail = False, f"timed out after {timeout:.0f} s"
         result.commands.append(Step("selftest-c", ok, time.perf_counter() - start, None, detail))
-        code, wall, peak, text = _python_selfcheck(folder, arm.name, arm_file, timeout)
+        code, wall, peak, text, cpu = _python_selfcheck(folder, arm.name, arm_file, timeout)
         result.commands.append(Step("selftest-python", code == 0, wall, peak,
-                                    "" if code == 0 else f"exit {code}: {text[-600:]}"))
+                                    "" if code == 0 else f"exit {code}: {text[-600:]}", cpu))
     step("simulate", _derive("simulate", arm_file.name, "--out", "sim", "--json", "metrics.json"))
     step("fmu --plant", _derive("fmu", arm_file.name, "--plant", "--out", "fmu"))
     return result
@@ -230,7 +236,8 @@ def _cell(result: ArmResult, command: str) -> str:
     mark = "" if c.ok else (" TIMEOUT" if "timed out" in c.detail else " FAIL")
     if c.ok and "refused" in c.detail:
         mark = " refused"
-    return f"{c.seconds:.1f} s{mem}{mark}"
+    cpu = "" if c.cpu_seconds is None else f"{c.cpu_seconds:.1f} s CPU, "
+    return f"{cpu}{c.seconds:.1f} s wall{mem}{mark}"
 
 
 def markdown(results: list[ArmResult], timeout: float) -> str:
@@ -240,7 +247,8 @@ def markdown(results: list[ArmResult], timeout: float) -> str:
     failures = [f"- {r.name} `{c.command}`: {c.detail}" for r in results for c in r.commands if not c.ok]
     return "\n\n".join([
         table(("arm", "joints", "Pinocchio load") + COLUMNS, rows),
-        f"Wall time and peak memory per command (timeout {timeout:.0f} s per command).",
+        f"CPU time (user + system), wall time and peak memory per command (timeout {timeout:.0f} s of wall time "
+        "per command); the goals read the CPU time.",
         "Failures:\n\n" + "\n".join(failures) if failures else "No failures."])
 
 
@@ -249,10 +257,11 @@ def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
     out = []
     seven = [r for r in results if r.joints == 7]
     for command, limit in (("show", 5.0), ("check", 30.0), ("generate", 15.0), ("fmu --plant", 30.0)):
-        times = [(r.name, c.seconds, c.ok) for r in seven for c in r.commands if c.command == command]
+        times = [(r.name, c.cpu_seconds if c.cpu_seconds is not None else c.seconds, c.ok)
+                 for r in seven for c in r.commands if c.command == command]
         if times:
             worst = max(times, key=lambda x: x[1])
-            out.append(Goal(f"7-joint arms: {command} under {limit:g} s", all(ok and t < limit for _, t, ok in times),
+            out.append(Goal(f"7-joint arms: {command} under {limit:g} s of CPU", all(ok and t < limit for _, t, ok in times),
                             f"slowest {worst[0]}: {worst[1]:.1f} s"))
     peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib is not None]
     if peaks:

@@ -131,7 +131,11 @@ def test_sideways_gravity_direction_is_normalised_exactly():
     data["arm"]["gravity_direction"] = [1, 1]
     chain = arm_from_dict(data).chain
     g = next(p.symbol for p in chain.parameters if p.field == "arm.gravity")
-    assert chain.gravity == sp.ImmutableMatrix([g * sp.sqrt(2) / 2, g * sp.sqrt(2) / 2, 0])
+    # rational (the proofs' ring holds rationals), exactly of length g, within 2^-60 of (1, 1)/sqrt 2
+    unit = chain.gravity / g
+    assert all(x.is_Rational for x in unit) and unit[2] == 0
+    assert (unit.T * unit)[0, 0] == 1
+    assert all(abs(sp.N(x - sp.sqrt(2) / 2, 40)) < 1e-17 for x in unit[:2])
 
 
 @pytest.mark.parametrize("value, match", [

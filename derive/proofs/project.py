@@ -11,6 +11,7 @@ evaluated at the point with J inverted numerically.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -264,8 +265,7 @@ def formal_first(check, note: bool = True):
             if out.status is Status.PROVED:
                 return replace(out, detail=out.detail + FORMAL) if note else out
         return check(d)
-    run.__doc__ = check.__doc__
-    return run
+    return functools.wraps(check)(run)
 
 
 OBLIGATIONS = (

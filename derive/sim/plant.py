@@ -159,3 +159,27 @@ class Plant:
     @property
     def dtheta(self) -> np.ndarray:
         return self.x[:, self.n:]
+
+
+RK4_REAL_LIMIT = 2.785293563405282   # the classical RK4 is stable for h lambda in [-2.785, 0] on the real axis
+
+
+def stiffest_mode(d: Derivation, s: SimSettings) -> dict:
+    """The fastest decay rate lambda [1/s] of the plant's velocities at the initial pose, the
+    largest eigenvalue of J^-1 D with D the damping of each joint (back-EMF, bv, [simulation]
+    viscous_friction and the smooth Coulomb friction's slope tau_c / 0.01 at rest), and h lambda
+    for the RK4 step h = sample_time / substeps: above RK4_REAL_LIMIT the integration of either
+    plant (derive's or MuJoCo's, the same scheme) is unstable in that mode and its trajectory
+    wrong; ``substeps`` is then the smallest count that is stable."""
+    from derive.model.actuators import terms
+
+    plant = true_plant(d, s)
+    rep = {sym: sp.Float(v, 17) for (sym, _), v in zip(d.values, plant.values)}
+    theta = list(d.dynamics.sym.theta)
+    J = np.array(lambdify(theta, [x.xreplace(rep) for x in d.dynamics.J])(*s.initial_theta), dtype=float)
+    damping = np.array([float(terms(a)[1].xreplace(rep)) for a in d.dynamics.chain.actuators])
+    damping += np.array(plant.viscous) + np.array(plant.coulomb) / SMOOTH
+    rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(d.n, d.n), np.diag(damping))).real))
+    h = s.sample_time / s.substeps
+    return {"rate": rate, "h_rate": rate * h, "stable": rate * h <= RK4_REAL_LIMIT,
+            "substeps": max(s.substeps, math.ceil(rate * s.sample_time / RK4_REAL_LIMIT))}

@@ -91,7 +91,7 @@ class MujocoPlant:
         data = mj.MjData(c.model)
         _argtypes(load(loop), loop.arm)
         f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
-        arrays = [f64(s.coulomb_friction), f64(plant.disturbance), f64(plant.u_max)]
+        arrays = [f64(c.coulomb), f64(plant.disturbance), f64(plant.u_max)]
         ints = [np.ascontiguousarray(c.qadr, dtype=np.int32), np.ascontiguousarray(c.dadr, dtype=np.int32)]
         args = [ctypes.c_void_p(c.model._address), ctypes.c_void_p(data._address),
                 *(a.ctypes.data_as(ctypes.POINTER(ctypes.c_int)) for a in ints),
@@ -104,7 +104,8 @@ class MujocoPlant:
     def stepped(self, d, s) -> "MujocoStepped":
         """The plant stepped from Python (derive.sim.plants.SteppedPlant)."""
         plant = true_plant(d, s)
-        return MujocoStepped(self.model(d, s), plant.u_max, plant.disturbance, s.coulomb_friction)
+        c = self.model(d, s)
+        return MujocoStepped(c, plant.u_max, plant.disturbance, c.coulomb)
 
     def describe(self, d, s) -> dict:
         """What the metrics file says of the plant (derive.sim.mujoco.model)."""

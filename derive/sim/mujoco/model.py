@@ -28,8 +28,10 @@ Steps:
    friction loss and limits: ``friction="file"`` keeps the file's (URDF ``<dynamics
    damping friction>``), ``"off"`` sets derive's (damping bv, no friction loss, no limits,
    no springs: both plants then have the same parameters); ``[simulation]
-   viscous_friction`` is added to the damping either way; the smooth Coulomb friction of
-   ``[simulation] coulomb_friction`` is applied by the loop (:mod:`.loop`).
+   viscous_friction`` is added to the damping either way. The smooth Coulomb friction of
+   ``[simulation] coulomb_friction`` is applied by the loop (:mod:`.loop`) on every joint
+   whose file gives no friction loss: where it does (``"file"``), MuJoCo's own dry friction
+   is that joint's Coulomb friction, not both.
 6. **Options**: RK4 at h = sample_time / substeps (the derived plant's step), gravity
    g * gravity_direction of the arm file turned from derive's base frame into MuJoCo's
    world, contacts off for a URDF (it has no geometry left) and with ``friction="off"``,
@@ -69,11 +71,13 @@ class Drive:
 @dataclass
 class Compiled:
     """A compiled model: ``model`` (mujoco.MjModel), the position and velocity addresses of
-    derive's joints, and the plant's description (what the metrics file states)."""
+    derive's joints, the smooth Coulomb friction tau_c per joint the loop adds [N m], and the
+    plant's description (what the metrics file states)."""
 
     model: object
     qadr: np.ndarray
     dadr: np.ndarray
+    coulomb: np.ndarray
     description: dict
 
 
@@ -290,8 +294,11 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
             scaled[sb.name or f"body {b}"] = factor
     drive = drives(d, values)
     extras = []
+    coulomb = np.array(s.coulomb_friction, dtype=float)
     for i, (sj, dr) in enumerate(zip(mapped, drive)):
         damping, frictionloss, armature, limited, spring = file_joint[sj.name]
+        if friction == "file" and frictionloss:
+            coulomb[i] = 0.0
         if friction == "off":
             damping, frictionloss, armature = dr.damping, 0.0, 0.0
             sj.limited, sj.stiffness = mj.mjtLimited.mjLIMITED_FALSE, np.zeros_like(sj.stiffness)
@@ -338,11 +345,12 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
         raise _fail(src, f"expected {n} degrees of freedom once the other joints are held, got {model.nv}")
     qadr = np.array([model.joint(j.name).qposadr[0] for j in mapped], dtype=np.int32)
     dadr = np.array([model.joint(j.name).dofadr[0] for j in mapped], dtype=np.int32)
-    return Compiled(model, qadr, dadr, _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled,
-                                                 extras, payload, opt.gravity))
+    return Compiled(model, qadr, dadr, coulomb, _describe(mj, src, d, s, friction, mapped, drive, held, removed,
+                                                          scaled, extras, payload, opt.gravity, coulomb))
 
 
-def _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, extras, payload, gravity) -> dict:
+def _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, extras, payload, gravity,
+              coulomb) -> dict:
     """The plant as the metrics file states it."""
     voltage = [a.actuation is Actuation.VOLTAGE for a in d.dynamics.chain.actuators]
     joints = []
@@ -360,9 +368,13 @@ def _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, ext
     if s.payload_scale != 1.0 and not payload:
         notes.append(f"payload_scale {s.payload_scale:g} not applied: the arm has no point masses on its last "
                      "link (derive's plant does not apply it either)")
-    if any(s.coulomb_friction):
+    if any(coulomb):
         notes.append("[simulation] coulomb_friction as derive's smooth law tau_c tanh(theta'/0.01), added to "
                      "MuJoCo's passive forces (mjcb_passive) at every RK4 stage")
+    replaced = [f"{sj.name} ({c:g} N m)" for sj, c, kept in zip(mapped, s.coulomb_friction, coulomb) if c and not kept]
+    if replaced:
+        notes.append("[simulation] coulomb_friction not added where the file's friction loss is the joint's Coulomb "
+                     "friction: " + ", ".join(replaced))
     return {"name": "mujoco", "engine": f"MuJoCo {mj.__version__}", "model": src.shown, "kind": src.kind,
             "integrator": "RK4", "timestep": s.sample_time / s.substeps, "steps_per_sample": s.substeps,
             "gravity": [float(x) for x in gravity], "friction": friction, "joints": joints, "held": held,

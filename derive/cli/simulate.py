@@ -163,6 +163,14 @@ def comparison_markdown(comparison: dict, name: str) -> list[str]:
     return lines + ["", f"Largest theta difference: {comparison['max_theta_difference']:.3e} rad."]
 
 
+def described(plant, d, settings) -> dict:
+    """The plant's description (derive.sim.plants) with the RK4 check of its stiffest mode
+    (derive.sim.plant.stiffest_mode), as metrics.json states it."""
+    from derive.sim.plant import stiffest_mode
+
+    return {**plant.describe(d, settings), "stiffest_mode": stiffest_mode(d, settings)}
+
+
 def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = False,
                    duration: float | None = None, observer: str = "explicit", plant: str = "derive",
                    friction: str = "file", compare: bool = False) -> tuple[dict[str, bytes], dict]:
@@ -175,7 +183,6 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
 
     from derive.control.pipeline import derive
     from derive.sim import plants
-    from derive.sim.plant import stiffest_mode
     from derive.sim.plots import difference_figure, error_figure, link_figure
 
     settings = arm.simulation if duration is None else replace(arm.simulation, duration=duration)
@@ -184,7 +191,7 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     d = derive(arm)
     runs = _runs(d, sources, names, backend_kind, settings, observer, progress)
     traces = runs[0]
-    results = metrics_results(traces, settings, {**main.describe(d, settings), "stiffest_mode": stiffest_mode(d, settings)})
+    results = metrics_results(traces, settings, described(main, d, settings))
     files = {f"link{i + 1}.png": link_figure(traces, i) for i in range(d.n)}
     files["tracking_error.png"] = error_figure(traces)
     if compare:

@@ -81,7 +81,7 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
             put(f"motor[{i}].{key}", f)
     changed = {}
     for sym, f in scale.items():
-        if f != 1.0:
+        if values[sym] * f != values[sym]:
             changed[str(sym)] = (values[sym], values[sym] * f)
             values[sym] *= f
     u_max = tuple(float(m.input_limit) if m.input_limit else math.inf for m in d.arm.motors)

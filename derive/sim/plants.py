@@ -108,13 +108,15 @@ def select(arm, name: str, friction: str = "file") -> PlantSource:
         raise DeriveError(f"--plant: expected one of {', '.join(PLANTS)}, got {name!r}")
     from derive.sim.mujoco import require
     from derive.sim.mujoco.loop import MujocoPlant
-    from derive.sim.mujoco.model import FRICTION
+    from derive.sim.mujoco.model import FRICTION, check
     from derive.sim.mujoco.source import load_source
 
     require()
     if friction not in FRICTION:
         raise DeriveError(f"--mujoco-friction: expected one of {', '.join(FRICTION)}, got {friction!r}")
-    return MujocoPlant(load_source(arm), friction)
+    source = load_source(arm)
+    check(source, arm.chain)   # the file fits the arm: one clear error now, before any derivation
+    return MujocoPlant(source, friction)
 
 
 def compare(traces, others, other: dict) -> dict:

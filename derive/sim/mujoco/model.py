@@ -218,28 +218,67 @@ def _owners(ref, joint_bodies: list[int]) -> list[int]:
     return owner
 
 
-def _strip_file_elements(mj, spec) -> dict[str, int]:
-    """Remove the file's constraints, tendons, actuators, sensors, keyframes and visual
-    assets (module docstring, steps 3-4); count them."""
+def _strip_file_elements(spec) -> dict[str, int]:
+    """Remove the file's constraints, tendons, actuators, sensors and keyframes (module
+    docstring, step 3); count them."""
     removed = {}
-    for kind in ("equalities", "tendons", "actuators", "sensors", "keys", "textures", "materials"):
+    for kind in ("equalities", "tendons", "actuators", "sensors", "keys"):
         items = list(getattr(spec, kind))
         for item in items:
             spec.delete(item)
         if items:
             removed[kind] = len(items)
-    geoms = [g for g in spec.geoms if g.type in (mj.mjtGeom.mjGEOM_MESH, mj.mjtGeom.mjGEOM_HFIELD,
-                                                 mj.mjtGeom.mjGEOM_SDF)]
+    return removed
+
+
+def _reference(mj, src, chain):
+    """The file parsed (an MjSpec) without the geometry it needs files for, compiled as written
+    (the reference model), derive's joints mapped onto it (module docstring, steps 1-2), and what
+    was removed."""
+    try:
+        spec = mj.MjSpec.from_string(src.xml)
+    except Exception as exc:  # noqa: BLE001 - MuJoCo's parser raises ValueError with its own message
+        raise _fail(src, f"MuJoCo could not read it: {' '.join(str(exc).split())}") from None
+    if src.kind == "mjcf":
+        spec.modelfiledir = src.folder
+        spec.compiler.fusestatic = False
+    removed = _strip_geometry(mj, src, spec)
+    ref = _compile(mj, src, spec, "file as written")
+    return spec, ref, _map_joints(mj, src, spec, ref, chain), removed
+
+
+def _strip_geometry(mj, src, spec) -> dict[str, int]:
+    """Remove mesh, height-field and SDF geoms and every asset that needs a file (meshes, height
+    fields, textures, materials, skins), so MuJoCo reads no file but the model's; a body whose
+    inertia MuJoCo would compute from such a geom is an error (give it an <inertial>)."""
+    from_geoms = spec.compiler.inertiafromgeom
+    shaped = (mj.mjtGeom.mjGEOM_MESH, mj.mjtGeom.mjGEOM_HFIELD, mj.mjtGeom.mjGEOM_SDF)
+    geoms = [g for g in spec.geoms if g.type in shaped]
+    for g in geoms:
+        body = g.parent
+        if from_geoms == mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE or (
+                from_geoms == mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO and not body.explicitinertial):
+            raise _fail(src, f"expected body {body.name or '(unnamed)'!r} to give its mass and inertia (an "
+                             f"<inertial>), got them computed from its {str(g.type).split('_')[-1].lower()} geom "
+                             f"{g.name or '(unnamed)'!r}, whose file derive does not read")
     for g in spec.geoms:
         g.material = ""
     for g in geoms:
         spec.delete(g)
-    if geoms:
-        removed["mesh geoms"] = len(geoms)
-    for kind in ("meshes", "hfields", "skins"):
-        for item in list(getattr(spec, kind)):
+    removed = {"mesh geoms": len(geoms)} if geoms else {}
+    for kind in ("meshes", "hfields", "textures", "materials", "skins"):
+        items = list(getattr(spec, kind))
+        for item in items:
             spec.delete(item)
+        if items and kind in ("meshes", "hfields"):
+            removed[kind] = len(items)
     return removed
+
+
+def check(src, chain) -> None:
+    """Raise the DeriveError :func:`build` would raise for a file that does not fit ``chain``
+    (derive.model.chain.Chain: the arm's, before any derivation), so a command fails first."""
+    _reference(require(), src, chain)
 
 
 def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compiled:
@@ -250,13 +289,8 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
     mj = require()
     if friction not in FRICTION:
         raise DeriveError(f"--mujoco-friction: expected one of {', '.join(FRICTION)}, got {friction!r}")
-    spec = mj.MjSpec.from_string(src.xml)
-    if src.kind == "mjcf":
-        spec.modelfiledir = src.folder
-        spec.compiler.fusestatic = False
-    ref = _compile(mj, src, spec, "file as written")
     chain = d.dynamics.chain
-    mapped = _map_joints(mj, src, spec, ref, chain)
+    spec, ref, mapped, stripped = _reference(mj, src, chain)
     ids = [j.id for j in mapped]
     joint_bodies = [int(ref.jnt_bodyid[j]) for j in ids]
     base = ref.body(src.base).id if src.base and src.base in [ref.body(b).name for b in range(ref.nbody)] \
@@ -272,7 +306,7 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
                          bool(np.any(ref.jnt_stiffness[j] != 0)) if np.ndim(ref.jnt_stiffness) > 1
                          else bool(ref.jnt_stiffness[j] != 0))
                   for j, name in zip(ids, (x.name for x in mapped))}
-    removed = _strip_file_elements(mj, spec)
+    removed = {**stripped, **_strip_file_elements(spec)}
     held = _hold(mj, src, spec, ref, set(ids), dict(src.locked))
     owner = _owners(ref, joint_bodies)
     n = d.n

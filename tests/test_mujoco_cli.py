@@ -86,18 +86,23 @@ disturbance = { distribution = "uniform", low = -0.5, high = 0.5 }
 
 
 def test_sweep_on_mujoco_is_the_same_for_one_and_two_workers_and_matches_derives(tmp_path):
-    """8 samples on MuJoCo: the same sweep.json with 1 and 2 workers; the mismatch drawn (link masses
-    and inertias, friction, disturbance) applies to MuJoCo's model as to derive's plant, so the
+    """8 samples on MuJoCo: the same sweep.json with 1 and 2 workers and on a Dask cluster (two
+    threads of this process: MuJoCo runs concurrently); the mismatch drawn (link masses and
+    inertias, friction, disturbance) applies to MuJoCo's model as to derive's plant, so the
     percentiles agree with derive's sweep to its 6 digits."""
+    from distributed import LocalCluster
+
     arm = arm_copy(tmp_path, "double_pendulum", extra=SWEEP)
     texts = {}
-    for label, options in (("one", ["--plant", "mujoco", "--mujoco-friction", "off", "--workers", "1"]),
-                           ("two", ["--plant", "mujoco", "--mujoco-friction", "off", "--workers", "2"]),
-                           ("derive", ["--workers", "1"])):
-        js = tmp_path / f"{label}.json"
-        assert main(["sweep", str(arm), "--out", str(tmp_path / label), "--json", str(js), *options]) == 0
-        texts[label] = js.read_text()
-    assert texts["one"] == texts["two"]
+    mujoco = ["--plant", "mujoco", "--mujoco-friction", "off"]
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        for label, options in (("one", [*mujoco, "--workers", "1"]), ("two", [*mujoco, "--workers", "2"]),
+                               ("dask", [*mujoco, "--dask", cluster.scheduler_address]), ("derive", ["--workers", "1"])):
+            js = tmp_path / f"{label}.json"
+            assert main(["sweep", str(arm), "--out", str(tmp_path / label), "--json", str(js), *options]) == 0
+            texts[label] = js.read_text()
+    assert texts["one"] == texts["two"] == texts["dask"]
     mj, dv = json.loads(texts["one"]), json.loads(texts["derive"])
     assert mj["plant"]["name"] == "mujoco" and dv["plant"]["name"] == "derive"
 

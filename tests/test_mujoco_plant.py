@@ -13,7 +13,7 @@ accumulates to at most about 60,000 x 1e-16 x 2 rad = 1.2e-11 rad in a contracti
 the second, an acceleration error of PARAM_REL |theta''| integrated twice, to PARAM_REL
 max|theta''| T^2 / 2. The stated tolerance of a run is the sum, TOL = 1e-9 rad (a factor 100 over
 the first) + PARAM_REL max|theta''| T^2 / 2: about 2e-8 rad for the runs that track here
-(|theta''| up to about 40 rad/s^2; measured below 1e-14 rad), 4.6e-7 rad for the Kinova under MPC
+(|theta''| up to about 40 rad/s^2; measured at most 4e-13 rad), 4.6e-7 rad for the Kinova under MPC
 alone, whose wrist, pushed by the default disturbance, spins at 27 rad/s with accelerations of
 1,000 rad/s^2 (measured 1.2e-8 rad: the one run where the second term shows). This holds while RK4
 is stable in the plant's stiffest mode, h lambda <= 2.785 (derive.sim.plant.stiffest_mode: the

@@ -126,6 +126,7 @@ MJCF = """<mujoco model="pendulum">
         <joint name="{j1}" type="hinge" axis="1 0 0" damping="0.05"/>
         <inertial pos="0 0 0.1" mass="1" diaginertia="0.01 0.01 0.001"/>
         <geom type="mesh" mesh="shell"/>
+        <geom type="capsule" size="0.02" fromto="0 0 0 0 0 0.2"/>
         <body name="link2" pos="0 0 0.2">
           <joint name="{j2}" type="{kind}" axis="1 0 0" damping="0.3"/>
           <inertial pos="0 0 0.1" mass="0.5" diaginertia="0.005 0.005 0.0005"/>
@@ -160,6 +161,7 @@ def test_an_mjcf_is_read_without_its_meshes_and_its_own_actuators(tmp_path):
     assert desc["kind"] == "mjcf" and desc["model"] == "pendulum.xml"
     assert any("1 actuators" in n for n in desc["notes"]) and any("2 mesh geoms" in n for n in desc["notes"])
     assert [j["damping"] for j in desc["joints"]] == pytest.approx([0.05 + 0.01, 0.3 + 0.002])
+    assert "contacts between the MJCF's 1 primitive geoms" in desc["beyond_derive"]   # it asks for them
     s = replace(arm.simulation, duration=3.0)
     loop = build(d, sources=(mj, DerivedPlant()))
     a, b = mj.run(d, loop, s, "npid"), DerivedPlant().run(d, loop, s, "npid")
@@ -276,3 +278,97 @@ def test_an_mjcf_body_whose_inertia_comes_from_a_mesh_is_one_error(tmp_path, cap
                                                        ""))
     _fails(tmp_path, capsys, ["simulate", str(arm), "--plant", "mujoco"], "body 'link1'", "(an <inertial>)",
            "mesh geom")
+
+
+BAD_MJCF = {
+    "malformed": ("<mujoco><worldbody>", "expected well-formed XML"),
+    "include": ('<mujoco><include file="other.xml"/></mujoco>', "with <include>"),
+    "unphysical": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling="").replace(
+        'diaginertia="0.01 0.01 0.001"', 'diaginertia="0.01 0.001 0.1"'), "MuJoCo could not compile the file"),
+    "held after moving": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling="").replace(
+        '<joint name="joint2" type="hinge" axis="1 0 0" damping="0.3"/>',
+        '<joint name="joint2" type="hinge" axis="1 0 0" damping="0.3"/><joint name="extra" axis="0 1 0"/>'),
+        "expected the held joints of body 'link2' before its moving ones"),
+    "locked ball": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling=(
+        '<body name="wrist"><joint name="joint3" type="ball"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>'
+        '</body>')), "arm.locked.joint3 = 0.5, got a ball joint"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_MJCF))
+def test_bad_mjcf_is_one_error(tmp_path, capsys, case):
+    """Malformed XML, an <include>, an inertia MuJoCo refuses, a joint held after a moving one in
+    the same body, a ball joint held at a value: one clear error each, exit 2, nothing written."""
+    text, words = BAD_MJCF[case]
+    arm = arm_copy(tmp_path, "double_pendulum", extra='mujoco_model = "pendulum.xml"\n')
+    if case == "locked ball":
+        arm.write_text(arm.read_text().replace('tip_link = "link2"', 'tip_link = "link2"\nlocked = { joint3 = 0.5 }'))
+        (tmp_path / "double_pendulum.urdf").write_text((tmp_path / "double_pendulum.urdf").read_text().replace(
+            "</robot>", '<link name="wrist"/><joint name="joint3" type="revolute"><parent link="base_link"/>'
+            '<child link="wrist"/><limit effort="1" velocity="1"/></joint></robot>'))
+    (tmp_path / "pendulum.xml").write_text(text)
+    _fails(tmp_path, capsys, ["simulate", str(arm), "--plant", "mujoco"], words)
+
+
+def test_unknown_plant_and_friction_mode_are_errors():
+    arm = load_arm(None)
+    with pytest.raises(DeriveError, match="--plant: expected one of derive, mujoco, got 'bullet'"):
+        select(arm, "bullet")
+    with pytest.raises(DeriveError, match="--mujoco-friction: expected one of file, off, got 'some'"):
+        select(load_arm(DATA / "double_pendulum.toml"), "mujoco", "some")
+
+
+def test_simulate_warns_when_rk4_is_unstable_in_the_stiffest_mode(tmp_path, capsys):
+    """The condition of the stated tolerance, checked for the user: the double pendulum's light second
+    joint with 0.05 N m of smooth Coulomb friction at 4 RK4 steps per 2 ms sample."""
+    arm = arm_copy(tmp_path, "double_pendulum", {"duration": 0.2, "coulomb_friction": [0.05, 0.05]})
+    js = tmp_path / "m.json"
+    assert main(["simulate", str(arm), "--controllers", "npid", "--out", str(tmp_path / "o"), "--json", str(js)]) == 0
+    err = capsys.readouterr().err
+    stiff = json.loads(js.read_text())["plant"]["stiffest_mode"]
+    assert not stiff["stable"] and stiff["substeps"] > 4
+    assert "derive: warning: the plant's stiffest mode" in err and f"substeps to at least {stiff['substeps']}" in err
+
+
+def test_geared_dc_motors_with_rotor_inertia_are_the_same_in_both_plants(tmp_path):
+    """The DC motor behind a gear (tau = gr Kt (u - gr Kv theta')/R, eq. 11-12) as MuJoCo's general
+    actuator and gr^2 Jm as armature: the default arm with gear ratios 3 and 5 and rotor inertias
+    follows derive's plant within the stated tolerance (friction off), the [simulation] factors
+    on the motor constants applied to both."""
+    text = (ARMS_DIR / "glasgow_2link.toml").read_text()
+    text = text.replace("gear_ratio = 1.0         # direct drive (section 5.1)", "gear_ratio = 3.0")
+    text = text.replace("rotor_inertia = 0.0      # kg m^2, not given", "rotor_inertia = 2e-5")
+    text = text.replace("resistance = 5.0\ngear_ratio = 1.0\nrotor_inertia = 0.0", "resistance = 5.0\ngear_ratio = 5.0\n"
+                        "rotor_inertia = 1e-5")
+    path = tmp_path / "geared.toml"
+    path.write_text(text + f'\n[simulation]\nmujoco_model = "{DATA / "glasgow_2link.urdf"}"\nduration = 10.0\n'
+                    "torque_constant_scale = [1.1, 0.9]\nvoltage_constant_scale = [0.95, 1.05]\n"
+                    "resistance_scale = [1.2, 0.8]\n")
+    arm = load_arm(path)
+    assert [float(m.gear_ratio) for m in arm.motors] == [3.0, 5.0] and arm.motors[1].rotor_inertia > 0
+    d = derive(arm)
+    mj = select(arm, "mujoco", "off")
+    joints = mj.describe(d, arm.simulation)["joints"]
+    assert [j["armature"] for j in joints] == pytest.approx([9 * 2e-5, 25 * 1e-5], rel=1e-15)
+    assert "gear 3" in joints[0]["actuator"] and "gear 5" in joints[1]["actuator"]
+    loop = build(d, sources=(mj, DerivedPlant()))
+    for name in ("mpc", "dobc"):
+        a, b = mj.run(d, loop, arm.simulation, name), DerivedPlant().run(d, loop, arm.simulation, name)
+        assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
+        assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation), name
+
+
+def test_geared_torque_drives_are_the_same_in_both_plants(tmp_path):
+    """A torque drive behind a gear (tau = gr u) with rotor inertia gr^2 Jm: the double pendulum with
+    gear ratio 2 and 1e-4 kg m^2 rotors follows derive's plant within the stated tolerance."""
+    path = arm_copy(tmp_path, "double_pendulum", {"duration": 5.0})
+    path.write_text(path.read_text().replace("gear_ratio = 1.0", "gear_ratio = 2.0").replace(
+        "rotor_inertia = 0.0", "rotor_inertia = 1e-4"))
+    arm = load_arm(path)
+    d = derive(arm)
+    mj = select(arm, "mujoco", "off")
+    assert [j["armature"] for j in mj.describe(d, arm.simulation)["joints"]] == pytest.approx([4e-4, 4e-4], rel=1e-15)
+    loop = build(d, sources=(mj, DerivedPlant()))
+    a, b = mj.run(d, loop, arm.simulation, "npid"), DerivedPlant().run(d, loop, arm.simulation, "npid")
+    assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
+    assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation)

@@ -163,7 +163,9 @@ def run(args) -> int:
     from derive.control.pipeline import derive
     from derive.cli import load_cli_arm
     from derive.progress import progress
+    from derive.cli.simulate import stiffness_words
     from derive.sim import plants
+    from derive.sim.plant import stiffest_mode
     from derive.sim.simulate import VARIANTS
     from derive.sim.sweep import Payload, run_sweep, summarize, worst_settings
     from derive.sim.sweep_plots import envelope_figure, histogram_figure
@@ -191,6 +193,9 @@ def run(args) -> int:
     plant = plants.select(arm, args.plant, args.mujoco_friction)
     start = time.perf_counter()
     d = derive(arm)
+    stiff = stiffest_mode(d, arm.simulation)
+    if not stiff["stable"]:   # at the arm file's [simulation]; the samples vary around it
+        print(f"derive: warning: {stiffness_words(stiff, arm.simulation)}", file=sys.stderr)
     payload = Payload(arm=arm, loop=plants.build(d, sources=(plant,)), names=spec.controllers, plant=plant)
     executor, workers, scatter, close = _executor(args, samples)
     try:

@@ -232,7 +232,7 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
         sj.actfrclimited = mj.mjtLimited.mjLIMITED_FALSE
         a = spec.add_actuator(name=f"derive_u{i + 1}", target=sj.name, trntype=mj.mjtTrn.mjTRN_JOINT)
         a.gaintype, a.biastype, a.dyntype = mj.mjtGain.mjGAIN_FIXED, mj.mjtBias.mjBIAS_AFFINE, mj.mjtDyn.mjDYN_NONE
-        a.gainprm[0], a.biasprm[2], a.gear[0] = dr.gain, dr.bias * dr.gear, dr.gear
+        a.gainprm[0], a.biasprm[2], a.gear[0] = dr.gain, dr.bias, dr.gear   # MuJoCo: velocity = gear theta'
         a.ctrllimited = a.forcelimited = mj.mjtLimited.mjLIMITED_FALSE
     rep = {sym: v for (sym, _), v in zip(d.values, values)}
     g_base = np.array([float(x.xreplace(rep)) for x in chain.gravity])

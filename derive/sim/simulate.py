@@ -15,7 +15,8 @@ y_d' and y_d'' are the filter's states and its ODE, never differences.
 Two loops run the same experiment: :func:`run_compiled` (the whole loop in C,
 derive.sim.compiled: the default) and :func:`run_many` (the Python-stepped
 reference, one numpy row per controller variant); they agree to 1e-9
-(tests/test_compiled_loop.py). A controller that refuses a sample ends its run
+(tests/test_compiled_loop.py). Either runs any plant of derive.sim.plants (this
+derivation's, or MuJoCo's: :func:`run_compiled_with`, a SteppedPlant). A controller that refuses a sample ends its run
 with a :class:`Failure` (time, error, joint, likely cause); the others go on.
 """
 from __future__ import annotations

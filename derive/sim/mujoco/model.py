@@ -4,8 +4,10 @@ model-compilation API (``MjSpec``) does every edit.
 
 Steps:
 
-1. MuJoCo parses the file and compiles it as written (the reference: every frame, axis
-   and inertia resolved by MuJoCo, static bodies kept apart).
+1. MuJoCo parses the file; its mesh, height-field and SDF geoms and the assets that need
+   files go (derive.sim.mujoco.edit.strip_geometry: no file is read); MuJoCo compiles it as
+   written (the reference: every frame, axis and inertia resolved by MuJoCo, static bodies
+   kept apart).
 2. **Mapping**: derive's chain joint i is MuJoCo's joint of the same name, a hinge for a
    revolute or continuous joint, a slide for a prismatic one; the joints must follow each
    other down one branch of the body tree. One DeriveError names the first that does not.
@@ -20,11 +22,10 @@ Steps:
    welded bodies are point masses; every body joint i carries for a URDF or DH arm), and
    ``payload_scale`` the bodies welded below the last joint when derive's arm has point
    masses on its last link (planar arms; a URDF arm has none, in either plant).
-   MJCF mesh geoms and mesh, texture and material assets are removed.
 5. **Joints**: derive's drive as a MuJoCo ``general`` actuator on each joint, input
    ctrl = u + d: voltage, gain Kt/R, bias -Kt Kv/R times the motor speed, gear gr (tau =
-   gr Kt (u - gr Kv theta')/R, eq. 11-12; MuJoCo's own ``dcmotor`` assumes Kt = Kv and is
-   not used); torque, gain 1, gear gr. Rotor inertia gr^2 Jm is ``armature``. Damping,
+   gr Kt (u - gr Kv theta')/R, eq. 11-12: MuJoCo's actuator velocity is gr theta'; its own
+   ``dcmotor`` assumes Kt = Kv and is not used); torque, gain 1, gear gr. Rotor inertia gr^2 Jm is ``armature``. Damping,
    friction loss and limits: ``friction="file"`` keeps the file's (URDF ``<dynamics
    damping friction>``), ``"off"`` sets derive's (damping bv, no friction loss, no limits,
    no springs: both plants then have the same parameters); ``[simulation]
@@ -34,7 +35,9 @@ Steps:
    is that joint's Coulomb friction, not both.
 6. **Options**: RK4 at h = sample_time / substeps (the derived plant's step), gravity
    g * gravity_direction of the arm file turned from derive's base frame into MuJoCo's
-   world, contacts off for a URDF (it has no geometry left) and with ``friction="off"``,
+   world, contacts off for a URDF (it has no geometry left) and with ``friction="off"``
+   (on for an MJCF's primitive geoms otherwise), the constraint solver off when nothing
+   needs it,
    no automatic reset (a diverging run reports non-finite values like derive's plant).
    Static bodies are fused when MuJoCo can (fewer bodies, same inertia).
 """

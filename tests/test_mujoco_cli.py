@@ -372,3 +372,27 @@ def test_geared_torque_drives_are_the_same_in_both_plants(tmp_path):
     a, b = mj.run(d, loop, arm.simulation, "npid"), DerivedPlant().run(d, loop, arm.simulation, "npid")
     assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
     assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation)
+
+
+def test_a_mujoco_without_its_c_library_is_one_error(tmp_path, monkeypatch):
+    """The compiled loop links with the wheel's libmujoco and headers; a mujoco package without them
+    says so (and that --backend python needs neither)."""
+    import types
+
+    from derive.sim.mujoco import compile_flags
+
+    (tmp_path / "mujoco").mkdir()
+    monkeypatch.setitem(sys.modules, "mujoco", types.SimpleNamespace(__file__=str(tmp_path / "mujoco" / "__init__.py")))
+    with pytest.raises(DeriveError, match="expected MuJoCo's C headers and library in the mujoco package.*--backend python"):
+        compile_flags()
+
+
+def test_the_stepped_plant_refuses_another_step_than_its_model(tmp_path):
+    arm = load_arm(arm_copy(tmp_path, "double_pendulum"))
+    d = derive(arm)
+    stepped = select(arm, "mujoco").stepped(d, arm.simulation)
+    stepped.reset(np.zeros(2), 1)
+    with pytest.raises(DeriveError, match=r"built for steps of 0.0005 s, asked for 4 steps of 0.001 s"):
+        stepped.step(np.zeros((1, 2)), 0.001, 4)
+    stepped.step(np.zeros((1, 2)), 0.002, 4)
+    assert stepped.theta.shape == stepped.dtheta.shape == (1, 2)

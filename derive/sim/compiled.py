@@ -82,7 +82,7 @@ def loop_sources(d, observer: str = "explicit", plants: tuple[str, ...] = ("deri
 def _flags(plants: tuple[str, ...]) -> list[str]:
     """Compiler and linker flags beyond FLAGS for the loops of ``plants``."""
     if "mujoco" in plants:
-        from derive.sim.mujoco.loop import compile_flags
+        from derive.sim.mujoco import compile_flags
 
         return compile_flags()
     return []

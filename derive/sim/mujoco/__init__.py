@@ -14,9 +14,13 @@ mujoco_model``, never a model rebuilt from derive's derivation:
   linked with MuJoCo's own library), and the plant stepped from Python.
 
 ``mujoco`` is an optional dependency (``pip install 'derive[mujoco]'``); it is imported
-here only, through :func:`require`.
+here only, through :func:`require`; :func:`compile_flags` finds the C headers and the
+``libmujoco`` its wheel ships (derive.sim.compiled links the loop with them).
 """
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 from derive.errors import DeriveError
 
@@ -31,3 +35,16 @@ def require():
         raise DeriveError(f"--plant mujoco: expected the mujoco package (MuJoCo's Python bindings; install it "
                           f"with {INSTALL}), got {type(exc).__name__}: {exc}") from None
     return mujoco
+
+
+def compile_flags() -> list[str]:
+    """Include path, library and run path of MuJoCo's C library from the installed wheel."""
+    mj = require()
+    folder = Path(mj.__file__).resolve().parent
+    names = ("libmujoco.so*", "libmujoco*.dylib") if sys.platform == "darwin" else ("libmujoco.so*",)
+    libs = sorted(p for pattern in names for p in folder.glob(pattern))
+    if not (folder / "include" / "mujoco" / "mujoco.h").is_file() or not libs:
+        raise DeriveError(f"--plant mujoco: expected MuJoCo's C headers and library in the mujoco package "
+                          f"({folder}/include/mujoco/mujoco.h, {folder}/libmujoco.so*), got none; reinstall it "
+                          "(pip install --force-reinstall mujoco) or use --backend python")
+    return [f"-I{folder / 'include'}", str(libs[-1]), f"-Wl,-rpath,{folder}"]

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import math
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -31,19 +29,6 @@ from derive.sim.mujoco.source import MujocoSource
 from derive.sim.plant import SMOOTH, true_plant
 
 TAG = 1684370025.0   # d->userdata[0] of derive's models (templates/sim/mujoco_loop.c.jinja)
-
-
-def compile_flags() -> list[str]:
-    """Include path, library and run path of MuJoCo's C library from the installed wheel."""
-    mj = require()
-    folder = Path(mj.__file__).resolve().parent
-    names = ("libmujoco.so*", "libmujoco*.dylib") if sys.platform == "darwin" else ("libmujoco.so*",)
-    libs = sorted(p for pattern in names for p in folder.glob(pattern))
-    if not (folder / "include" / "mujoco" / "mujoco.h").is_file() or not libs:
-        raise DeriveError(f"--plant mujoco: expected MuJoCo's C headers and library in the mujoco package "
-                          f"({folder}/include/mujoco/mujoco.h, {folder}/libmujoco.so*), got none; reinstall it "
-                          "(pip install --force-reinstall mujoco) or use --backend python")
-    return [f"-I{folder / 'include'}", str(libs[-1]), f"-Wl,-rpath,{folder}"]
 
 
 _CACHE: dict = {}

@@ -138,9 +138,9 @@ def plant_markdown(plant: dict) -> list[str]:
               f"2.785{'' if stiff['stable'] else ': UNSTABLE, raise substeps to ' + str(stiff['substeps'])})")
     if plant["name"] == "derive":
         return [f"Plant: derive's, {plant['model']}; {h}.", ""]
+    joints = "the file's" if plant["friction"] == "file" else "derive's, no friction loss or limits"
     lines = [f"Plant: {plant['engine']} integrating `{plant['model']}` ({plant['kind'].upper()}); {h}; joint "
-             f"damping, friction loss and limits: {'the file' + chr(39) + 's' if plant['friction'] == 'file' else 'off'}"
-             f"; gravity {plant['gravity']} m/s^2 in MuJoCo's world.", "",
+             f"damping, friction loss and limits: {joints}; gravity {plant['gravity']} m/s^2 in MuJoCo's world.", "",
              "| derive joint | MuJoCo joint | actuator | armature [kg m^2] | damping | friction loss |",
              "| --- | --- | --- | --: | --: | --: |"]
     lines += [f"| {j['derive']} | {j['mujoco']} | {j['actuator']} | {j['armature']:.6g} | {j['damping']:.6g} | "
@@ -267,7 +267,7 @@ def run(args) -> int:
         arm = with_voltage_limits(arm, args.voltage_limits)
     from derive.sim import plants
 
-    for plant in {args.plant, *(plants.PLANTS if args.compare else ())}:   # before minutes of derivation
+    for plant in dict.fromkeys([args.plant, *(plants.PLANTS if args.compare else ())]):   # before the derivation
         plants.select(arm, plant, args.mujoco_friction)
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
         from derive.control.pipeline import derive

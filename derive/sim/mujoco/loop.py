@@ -119,7 +119,6 @@ class MujocoStepped:
 
     def reset(self, theta0, rows: int) -> None:
         mj = require()
-        mj.set_mjcb_passive(_passive)
         self.data = []
         for _ in range(rows):
             data = mj.MjData(self.c.model)
@@ -132,9 +131,13 @@ class MujocoStepped:
         h = self.c.model.opt.timestep
         if not math.isclose(h * substeps, dt, rel_tol=1e-12):
             raise DeriveError(f"MuJoCo plant: built for steps of {h:g} s, asked for {substeps} steps of {dt:g} s")
-        for row, data in zip(u, self.data):
-            data.ctrl[:] = row + self.d
-            mj.mj_step(self.c.model, data, nstep=substeps)
+        mj.set_mjcb_passive(_passive)   # only while stepping: a Python callback breaks MuJoCo's compiler
+        try:
+            for row, data in zip(u, self.data):
+                data.ctrl[:] = row + self.d
+                mj.mj_step(self.c.model, data, nstep=substeps)
+        finally:
+            mj.set_mjcb_passive(None)   # the compiled loop installs its own at each run
 
     def keep(self, rows: list[int]) -> None:
         self.data = [self.data[r] for r in rows]

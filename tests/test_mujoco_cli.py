@@ -170,6 +170,21 @@ def test_an_mjcf_is_read_without_its_meshes_and_its_own_actuators(tmp_path):
     assert compare([a], [b], {})["max_theta_difference"] > 1e-3
 
 
+def plants_agree(arm, controllers, expect=None) -> None:
+    """``arm`` on MuJoCo (friction off) and on derive's plant: each controller tracks (joint 1 moves
+    more than 0.5 rad, no failure) and the two stay within the stated tolerance; ``expect(d, mj)``
+    checks the MuJoCo plant first."""
+    d = derive(arm)
+    mj = select(arm, "mujoco", "off")
+    if expect is not None:
+        expect(d, mj)
+    loop = build(d, sources=(mj, DerivedPlant()))
+    for name in controllers:
+        a, b = mj.run(d, loop, arm.simulation, name), DerivedPlant().run(d, loop, arm.simulation, name)
+        assert a.failure is None and np.max(np.abs(b.theta)) > 0.5, name
+        assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation), name
+
+
 @pytest.mark.parametrize("name, tip, held, kept", [
     ("double_pendulum", "link2", {"joint2": "1.5707963267948966"}, 1),   # a hinge at pi/2 (derive keeps it exact)
     ("synthetic", "tool", {"slide": "0.05"}, 3),                          # a slide at 5 cm
@@ -189,14 +204,10 @@ def test_held_joints_are_fixed_where_derive_holds_them(tmp_path, name, tip, held
     path.write_text(head + "[[motor]]" + "[[motor]]".join(motors[:kept]) + "\n[controller]" + rest)
     arm = load_arm(path)
     assert arm.n == kept
-    d = derive(arm)
-    mj = select(arm, "mujoco", "off")
-    assert mj.describe(d, arm.simulation)["held"] == [f"{k} at {float(v):g}" for k, v in held.items()]
-    loop = build(d, sources=(mj, DerivedPlant()))
-    for controller in ("mpc", "npid"):
-        a, b = mj.run(d, loop, arm.simulation, controller), DerivedPlant().run(d, loop, arm.simulation, controller)
-        assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
-        assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation), controller
+
+    def expect(d, mj):
+        assert mj.describe(d, arm.simulation)["held"] == [f"{k} at {float(v):g}" for k, v in held.items()]
+    plants_agree(arm, ("mpc", "npid"), expect)
 
 
 def test_python_stepped_loop_runs_mujoco_like_the_compiled_one(tmp_path):
@@ -347,16 +358,12 @@ def test_geared_dc_motors_with_rotor_inertia_are_the_same_in_both_plants(tmp_pat
                     "resistance_scale = [1.2, 0.8]\n")
     arm = load_arm(path)
     assert [float(m.gear_ratio) for m in arm.motors] == [3.0, 5.0] and arm.motors[1].rotor_inertia > 0
-    d = derive(arm)
-    mj = select(arm, "mujoco", "off")
-    joints = mj.describe(d, arm.simulation)["joints"]
-    assert [j["armature"] for j in joints] == pytest.approx([9 * 2e-5, 25 * 1e-5], rel=1e-15)
-    assert "gear 3" in joints[0]["actuator"] and "gear 5" in joints[1]["actuator"]
-    loop = build(d, sources=(mj, DerivedPlant()))
-    for name in ("mpc", "dobc"):
-        a, b = mj.run(d, loop, arm.simulation, name), DerivedPlant().run(d, loop, arm.simulation, name)
-        assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
-        assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation), name
+
+    def expect(d, mj):
+        joints = mj.describe(d, arm.simulation)["joints"]
+        assert [j["armature"] for j in joints] == pytest.approx([9 * 2e-5, 25 * 1e-5], rel=1e-15)
+        assert "gear 3" in joints[0]["actuator"] and "gear 5" in joints[1]["actuator"]
+    plants_agree(arm, ("mpc", "dobc"), expect)
 
 
 def test_geared_torque_drives_are_the_same_in_both_plants(tmp_path):
@@ -366,13 +373,10 @@ def test_geared_torque_drives_are_the_same_in_both_plants(tmp_path):
     path.write_text(path.read_text().replace("gear_ratio = 1.0", "gear_ratio = 2.0").replace(
         "rotor_inertia = 0.0", "rotor_inertia = 1e-4"))
     arm = load_arm(path)
-    d = derive(arm)
-    mj = select(arm, "mujoco", "off")
-    assert [j["armature"] for j in mj.describe(d, arm.simulation)["joints"]] == pytest.approx([4e-4, 4e-4], rel=1e-15)
-    loop = build(d, sources=(mj, DerivedPlant()))
-    a, b = mj.run(d, loop, arm.simulation, "npid"), DerivedPlant().run(d, loop, arm.simulation, "npid")
-    assert a.failure is None and np.max(np.abs(b.theta)) > 0.5
-    assert compare([a], [b], {})["max_theta_difference"] <= tolerance(b, arm.simulation)
+
+    def expect(d, mj):
+        assert [j["armature"] for j in mj.describe(d, arm.simulation)["joints"]] == pytest.approx([4e-4] * 2, rel=1e-15)
+    plants_agree(arm, ("npid",), expect)
 
 
 def test_a_mujoco_without_its_c_library_is_one_error(tmp_path, monkeypatch):

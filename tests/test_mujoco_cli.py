@@ -401,3 +401,17 @@ def test_the_stepped_plant_refuses_another_step_than_its_model(tmp_path):
         stepped.step(np.zeros((1, 2)), 0.001, 4)
     stepped.step(np.zeros((1, 2)), 0.002, 4)
     assert stepped.theta.shape == stepped.dtheta.shape == (1, 2)
+
+
+def test_mujocos_warnings_go_into_the_description_not_a_log_file(tmp_path, monkeypatch):
+    """MuJoCo's own warnings (here: a deprecated <statistic meaninertia> of the MJCF) are notes of
+    the plant's description; nothing is written into the working folder (MuJoCo's default handler
+    writes MUJOCO_LOG.TXT there)."""
+    monkeypatch.chdir(tmp_path)
+    arm = load_arm(_mjcf(tmp_path / "arm"))
+    xml = tmp_path / "arm" / "pendulum.xml"
+    xml.write_text(xml.read_text().replace("<worldbody>", '<statistic meaninertia="1"/><worldbody>'))
+    d = derive(arm)
+    notes = select(arm, "mujoco").describe(d, arm.simulation)["notes"]
+    assert any(n.startswith("MuJoCo warned:") for n in notes), notes
+    assert list(tmp_path.iterdir()) == [tmp_path / "arm"]

@@ -44,6 +44,8 @@ Steps:
 from __future__ import annotations
 
 import math
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from difflib import get_close_matches
 
@@ -145,19 +147,38 @@ def _map_joints(mj, src, spec, ref, chain) -> list:
     return out
 
 
+@contextmanager
+def _warnings(mj):
+    """MuJoCo's warnings while parsing and compiling, collected (its default handler would print
+    them and write MUJOCO_LOG.TXT into the working folder; its compiler raises Python warnings),
+    the previous handler restored."""
+    said: list[str] = []
+    previous = mj.get_mju_user_warning()
+    mj.set_mju_user_warning(said.append)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield said
+        said.extend(str(w.message) for w in caught)
+    finally:
+        mj.set_mju_user_warning(previous)
+
+
 def _reference(mj, src, chain):
     """The file parsed (an MjSpec) without the geometry it needs files for, compiled as written
     (the reference model), derive's joints mapped onto it (module docstring, steps 1-2), and what
     was removed."""
-    try:
-        spec = mj.MjSpec.from_string(src.xml)
-    except Exception as exc:  # noqa: BLE001 - MuJoCo's parser raises ValueError with its own message
-        raise fail(src, f"MuJoCo could not read it: {' '.join(str(exc).split())}") from None
-    if src.kind == "mjcf":
-        spec.modelfiledir = src.folder
-        spec.compiler.fusestatic = False
-    removed = strip_geometry(mj, src, spec)
-    ref = _compile(mj, src, spec, "file as written")
+    with _warnings(mj) as said:
+        try:
+            spec = mj.MjSpec.from_string(src.xml)
+        except Exception as exc:  # noqa: BLE001 - MuJoCo's parser raises ValueError with its own message
+            raise fail(src, f"MuJoCo could not read it: {' '.join(str(exc).split())}") from None
+        if src.kind == "mjcf":
+            spec.modelfiledir = src.folder
+            spec.compiler.fusestatic = False
+        removed = strip_geometry(mj, src, spec)
+        ref = _compile(mj, src, spec, "file as written")
+    removed.update({f"MuJoCo warned: {text}": 0 for text in said})
     return spec, ref, _map_joints(mj, src, spec, ref, chain), removed
 
 
@@ -256,11 +277,13 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
     spec.compiler.inertiafromgeom = mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     fused = spec.copy()
     fused.compiler.fusestatic = True
-    try:
-        model = fused.compile()
-    except Exception:  # noqa: BLE001 - MuJoCo cannot fuse some degenerate inertias: keep the bodies apart
-        spec.compiler.fusestatic = False
-        model = _compile(mj, src, spec, "model with derive's edits")
+    with _warnings(mj) as said:
+        try:
+            model = fused.compile()
+        except Exception:  # noqa: BLE001 - MuJoCo cannot fuse some degenerate inertias: keep the bodies apart
+            spec.compiler.fusestatic = False
+            model = _compile(mj, src, spec, "model with derive's edits")
+    removed.update({f"MuJoCo warned: {text}": 0 for text in said})
     if model.nv != n:
         raise fail(src, f"expected {n} degrees of freedom once the other joints are held, got {model.nv}")
     qadr = np.array([model.joint(j.name).qposadr[0] for j in mapped], dtype=np.int32)
@@ -281,7 +304,8 @@ def _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, ext
                        "armature": float(sj.armature), "damping": float(sj.damping[0]),
                        "frictionloss": float(sj.frictionloss)})
     notes = list(src.notes)
-    notes += [f"removed from the file: {k} {what}" for what, k in removed.items()]
+    notes += [what if what.startswith("MuJoCo warned") else f"removed from the file: {k} {what}"
+              for what, k in removed.items()]
     if scaled:
         notes.append("mass and inertia scaled ([simulation] mismatch): "
                      + ", ".join(f"{name} x{f:g}" for name, f in scaled.items()))

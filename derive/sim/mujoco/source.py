@@ -13,7 +13,10 @@ Stripping (MuJoCo then needs no mesh file):
 * URDF: every ``<visual>`` and ``<collision>`` (MuJoCo integrates the ``<inertial>``
   data only; a link without one is massless, as derive reads it), ``<transmission>``,
   ``<gazebo>`` and any ``<mujoco>`` block are removed; joint ``<limit lower upper>`` are
-  removed (derive's plant has no joint limits, neither has MuJoCo's); one
+  removed (derive's plant has no joint limits, neither has MuJoCo's); an ``rpy`` angle
+  within 1e-9 rad of a multiple of pi/2 is written as that multiple to the last bit, as
+  derive reads it (derive.model.rigid: ROS writes pi/2 as 1.57079632679, 4.9e-12 rad off),
+  so that both plants integrate the same kinematics; one
   ``<mujoco><compiler>`` block is added: no inertia from geometry, no inertia
   balancing, static bodies kept apart until derive has applied its mismatch
   (:mod:`.model` fuses them when it compiles).
@@ -24,11 +27,13 @@ The result is plain data (:class:`MujocoSource`): sweeps ship it to their worker
 """
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from derive.errors import DeriveError
+from derive.model.rigid import SNAP_TOLERANCE
 
 MAX_BYTES = 16 << 20
 COMPILER = {"discardvisual": "true", "fusestatic": "false", "balanceinertia": "false",
@@ -115,12 +120,40 @@ def _strip_urdf(root) -> list[str]:
     for limit in root.findall("joint/limit"):
         for key in ("lower", "upper"):
             limit.attrib.pop(key, None)
+    snapped = _snap_angles(root)
     SubElement(SubElement(root, "mujoco"), "compiler", COMPILER)
+    notes = [f"rpy angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 given to MuJoCo as that multiple, as "
+             f"derive reads them (derive.model.rigid): {snapped}"] if snapped else []
     if not removed:
-        return []
+        return notes
     return ["removed from the URDF before MuJoCo read it: "
             + ", ".join(f"{k} <{tag}>" for tag, k in removed.items())
-            + " (MuJoCo integrates the <inertial> data; no mesh file is read)"]
+            + " (MuJoCo integrates the <inertial> data; no mesh file is read)", *notes]
+
+
+def _snap_angles(root) -> str:
+    """Write every ``<origin rpy>`` angle of the joints and inertials that derive snaps to a
+    multiple k pi/2 (derive.model.rigid.exact_angle: within SNAP_TOLERANCE) as k pi/2 in double;
+    return what changed ("" when nothing), e.g. "1.57079632679 -> pi/2 (4 times)"."""
+    changed: dict[str, int] = {}
+    for origin in [*root.findall("joint/origin"), *root.findall("link/inertial/origin")]:
+        text = origin.get("rpy")
+        try:
+            values = [float(x) for x in (text or "").split()]
+        except ValueError:
+            continue   # derive's reader has its own message for it (or does not read this element)
+        out = []
+        for x in values:
+            k = round(x / (math.pi / 2))
+            off = abs(x - k * math.pi / 2)
+            if 0.0 < off <= SNAP_TOLERANCE:
+                target = {0: "0", 1: "pi/2", -1: "-pi/2", 2: "pi", -2: "-pi"}.get(k, f"{k}*pi/2")
+                changed[f"{x!r} -> {target}"] = changed.get(f"{x!r} -> {target}", 0) + 1
+                x = k * (math.pi / 2)
+            out.append(repr(x))
+        if len(out) == 3 and any(f"{x!r}" != y for x, y in zip(values, out)):
+            origin.set("rpy", " ".join(out))
+    return ", ".join(f"{what} ({k} time{'s' if k > 1 else ''})" for what, k in changed.items())
 
 
 def load_source(arm) -> MujocoSource:

@@ -22,7 +22,8 @@ integrations are wrong and their rounding differences grow (the Kinova's light w
 per sample: 1.7e-5 rad), so the Kinova runs at 16 steps per sample, and derive simulate warns.
 
 With the URDF's friction on (each joint's <dynamics friction> set in a copy of the vendored
-file: MuJoCo's friction loss, a dry-friction constraint derive's plant does not have), DOBC and
+file: MuJoCo's friction loss, a dry-friction constraint that derive's plant models only as its
+smooth law, here at the unmodified arm's [simulation] values), DOBC and
 NPID still track: their steady-state error stays below TRACKING[arm] on every joint (the observer,
 eq. 21-27, and NPID's integral action, eq. 34-38, take the friction as a disturbance; measured
 with MuJoCo 4.0: UR5 4.0 mrad at 2 N m, Panda 0.74 mrad at 0.5 N m, Kinova 22 mrad at 0.3 N m
@@ -118,7 +119,7 @@ def test_mujoco_model_has_derives_parameters_when_friction_is_off(case):
 
 
 def test_dobc_and_npid_track_on_mujoco_with_the_urdfs_friction(case, tmp_path):
-    """With the URDF's friction on (MuJoCo's friction loss, which derive's plant lacks), DOBC and
+    """With the URDF's friction on (MuJoCo's friction loss; derive's plant keeps the unmodified arm's), DOBC and
     NPID keep the steady-state error below TRACKING[arm] on every joint; the difference from
     derive's plant is reported (finite, named), not asserted."""
     name, arm, d, _, loop = case

@@ -177,10 +177,11 @@ def comparison_markdown(comparison: dict, name: str) -> list[str]:
 
 def described(plant, d, settings) -> dict:
     """The plant's description (derive.sim.plants) with the RK4 check of its stiffest mode
-    (derive.sim.plant.stiffest_mode), as metrics.json states it."""
+    (derive.sim.plant.stiffest_mode, with the smooth Coulomb friction this plant applies), as
+    metrics.json states it."""
     from derive.sim.plant import stiffest_mode
 
-    return {**plant.describe(d, settings), "stiffest_mode": stiffest_mode(d, settings)}
+    return {**plant.describe(d, settings), "stiffest_mode": stiffest_mode(d, settings, plant.coulomb(d, settings))}
 
 
 def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = False,

@@ -206,7 +206,7 @@ def run(args) -> int:
     plant = plants.select(arm, args.plant, args.mujoco_friction)
     start = time.perf_counter()
     d = derive(arm)
-    stiff = stiffest_mode(d, arm.simulation)
+    stiff = stiffest_mode(d, arm.simulation, plant.coulomb(d, arm.simulation))
     if not stiff["stable"]:   # at the arm file's [simulation]; the samples vary around it
         print(f"derive: warning: {stiffness_words(stiff, arm.simulation)}", file=sys.stderr)
     payload = Payload(arm=arm, loop=plants.build(d, args.observer, (plant,)), names=spec.controllers, plant=plant)

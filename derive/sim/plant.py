@@ -164,13 +164,16 @@ class Plant:
 RK4_REAL_LIMIT = 2.785293563405282   # the classical RK4 is stable for h lambda in [-2.785, 0] on the real axis
 
 
-def stiffest_mode(d: Derivation, s: SimSettings) -> dict:
+def stiffest_mode(d: Derivation, s: SimSettings, coulomb=None) -> dict:
     """The fastest decay rate lambda [1/s] of the plant's velocities at the initial pose, the
     largest eigenvalue of J^-1 D with D the damping of each joint (back-EMF, bv, [simulation]
     viscous_friction and the smooth Coulomb friction's slope tau_c / 0.01 at rest), and h lambda
     for the RK4 step h = sample_time / substeps: above RK4_REAL_LIMIT the integration of either
     plant (derive's or MuJoCo's, the same scheme) is unstable in that mode and its trajectory
-    wrong; ``substeps`` is then the smallest count that is stable."""
+    wrong; ``substeps`` is then the smallest count that is stable. ``coulomb``: the tau_c [N m]
+    per joint the plant applies as the smooth law (derive.sim.plants.PlantSource.coulomb;
+    default [simulation] coulomb_friction, derive's plant; MuJoCo's leaves it out where the
+    file's friction loss replaces it)."""
     from derive.model.actuators import terms
 
     plant = true_plant(d, s)
@@ -178,7 +181,8 @@ def stiffest_mode(d: Derivation, s: SimSettings) -> dict:
     theta = list(d.dynamics.sym.theta)
     J = np.array(lambdify(theta, [x.xreplace(rep) for x in d.dynamics.J])(*s.initial_theta), dtype=float)
     damping = np.array([float(terms(a)[1].xreplace(rep)) for a in d.dynamics.chain.actuators])
-    damping += np.array(plant.viscous) + np.array(plant.coulomb) / SMOOTH
+    tau_c = np.array(plant.coulomb if coulomb is None else coulomb, dtype=float)
+    damping += np.array(plant.viscous) + tau_c / SMOOTH
     rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(d.n, d.n), np.diag(damping))).real))
     h = s.sample_time / s.substeps
     return {"rate": rate, "h_rate": rate * h, "stable": rate * h <= RK4_REAL_LIMIT,

@@ -63,6 +63,10 @@ class PlantSource(Protocol):
 
     def describe(self, d, s) -> dict: ...
 
+    def coulomb(self, d, s) -> np.ndarray:
+        """The smooth Coulomb friction tau_c tanh(theta'/0.01) per joint [N m] the plant applies
+        under settings ``s`` (derive.sim.plant.stiffest_mode takes its slope)."""
+
 
 @dataclass(frozen=True)
 class DerivedPlant:
@@ -88,6 +92,12 @@ class DerivedPlant:
                 "[simulation] parameter values, plus its Coulomb and viscous friction",
                 "integrator": "RK4", "timestep": s.sample_time / s.substeps, "steps_per_sample": s.substeps,
                 "changed": {k: {"arm": a, "plant": b} for k, (a, b) in sorted(changed.items())}}
+
+    def coulomb(self, d, s) -> np.ndarray:
+        """[simulation] coulomb_friction, as derive's plant applies it (derive.sim.plant)."""
+        from derive.sim.plant import true_plant
+
+        return np.array(true_plant(d, s).coulomb, dtype=float)
 
 
 def build(d, observer: str = "explicit", sources=(DerivedPlant(),)):

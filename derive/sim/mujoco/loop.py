@@ -96,6 +96,11 @@ class MujocoPlant:
         """What the metrics file says of the plant (derive.sim.mujoco.model)."""
         return self.model(d, s).description
 
+    def coulomb(self, d, s) -> np.ndarray:
+        """The smooth Coulomb friction the loop adds: [simulation] coulomb_friction except on the
+        joints whose file's friction loss replaces it (derive.sim.mujoco.model, step 5)."""
+        return np.array(self.model(d, s).coulomb, dtype=float)
+
 
 def _passive(model, data) -> None:
     """derive's smooth Coulomb friction on derive's models (the C loop's derive_passive)."""

@@ -1,11 +1,19 @@
 """Arm files for the MuJoCo-plant tests: copies of the vendored URDF arms (tests/data/urdf) in a
 temporary folder, with the test's [simulation] settings, observer gains that the sample time
-allows (derive.control.sampling), and optionally the URDF's <dynamics friction> set."""
+allows (derive.control.sampling), and optionally the URDF's <dynamics friction> set.
+
+Without that option the copy's [simulation] states coulomb_friction = [0.05, 0.01, ...] (the
+simspec default, derive.model.simspec) unless the test gives its own: the UR5's, Panda's and
+Kinova's URDFs write <dynamics friction="0.0">, which is a URDF arm's coulomb_friction default
+(derive.model.spec), and these tests compare the plants with the smooth Coulomb friction on
+(MuJoCo's through derive's passive callback), the stiff wrists they describe included."""
 from __future__ import annotations
 
 import re
 import shutil
 from pathlib import Path
+
+from derive.model.simspec import default_settings
 
 DATA = Path(__file__).resolve().parent / "data" / "urdf"
 
@@ -37,6 +45,9 @@ def arm_copy(folder: Path, name: str, simulation: dict | None = None, friction: 
     text = re.sub(r"^w = \[[^\]]*\]", lambda m: "w = [" + ", ".join([repr(w)] * (m.group(0).count(",") + 1)) + "]",
                   text, flags=re.M)
     table = {"sample_time": dt, "substeps": substeps, **(simulation or {})}
+    if friction is None and "coulomb_friction" not in table:
+        n = text.count("\n[[motor]]")
+        table["coulomb_friction"] = list(default_settings(n).coulomb_friction)
     text += "\n[simulation]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in table.items()) + extra
     urdf = (DATA / f"{name}.urdf").read_text()
     if friction is not None:

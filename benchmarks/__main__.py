@@ -12,7 +12,8 @@ import platform
 import sys
 import time
 
-SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "observer", "spatial", "identify", "corpus")
+SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "mujoco", "observer", "spatial", "identify",
+                             "corpus")
 
 
 def main(names: tuple[str, ...] = SECTIONS) -> int:

@@ -225,14 +225,17 @@ def test_committed_simulation_outputs_are_regenerated_byte_for_byte(paper_runs):
     committed metrics.json, metrics.md and figures again, byte for byte; and metrics.json
     does not move when every figure moves in its last bits (1e-12 relative, far beyond the
     1e-13 by which the compiled FMU loop and this one differ), as on another CPU and libm."""
-    from derive.cli.simulate import metrics_json, metrics_markdown, metrics_results
+    from derive.cli.simulate import described, metrics_json, metrics_markdown, metrics_results
+    from derive.sim.plants import DerivedPlant
     from derive.sim.plots import error_figure, link_figure
 
     arm, runs = paper_runs
     sim = ROOT / "generated" / "glasgow_2link" / "sim"
-    results = metrics_results(list(runs.values()), arm.simulation)
+    plant = described(DerivedPlant(), derive.derive(arm), arm.simulation)
+    results = metrics_results(list(runs.values()), arm.simulation, plant=plant)
     assert metrics_json(results) == (sim / "metrics.json").read_text(encoding="utf-8")
-    assert metrics_markdown(arm.name, results["controllers"], "compiled") == (sim / "metrics.md").read_text()
+    assert metrics_markdown(arm.name, results["controllers"], "compiled", plant=plant) == \
+        (sim / "metrics.md").read_text()
     for factor in (1 + 1e-12, 1 - 1e-12):
         assert metrics_json(_perturbed(results, factor)) == metrics_json(results)
     traces = list(runs.values())

@@ -27,6 +27,9 @@ link_mass_scale     [1, ...]               mass factor of each link (its inertia
 torque_constant_scale   [1, ...]           factor on each motor's torque constant
 voltage_constant_scale  [1, ...]           factor on each motor's voltage constant
 resistance_scale    [1, ...]               factor on each motor's resistance
+mujoco_model        ""                     the MJCF (or URDF) MuJoCo integrates under
+                                           ``--plant mujoco``, relative to the arm file;
+                                           "" = the arm's own URDF (derive.sim.mujoco)
 ==================  =====================  ===========================================
 
 The default friction makes the predictive controller's steady-state error
@@ -68,6 +71,7 @@ class SimSettings:
     voltage_constant_scale: tuple[float, ...] = ()
     resistance_scale: tuple[float, ...] = ()
     reference_start: str = "zero"   # "zero" or "measured" (derive.sim.start)
+    mujoco_model: str = ""           # the file MuJoCo integrates under --plant mujoco (derive.sim.mujoco)
 
 
 REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
@@ -104,7 +108,7 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
         return base, problems
     if not isinstance(table, dict):
         return base, [Problem("simulation", "a table", repr(table)[:60])]
-    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start"}
+    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model"}
     values: dict[str, Any] = {}
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",
@@ -125,6 +129,13 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                         else "a whole number >= 0", repr(v)[:60]))
             else:
                 values[key] = v
+    if "mujoco_model" in table:
+        v = table["mujoco_model"]
+        if not isinstance(v, str) or not v.strip() or any(not c.isprintable() for c in v):
+            problems.append(Problem("simulation.mujoco_model", "the path of an MJCF or URDF file (relative to "
+                                    "the arm file), one line of printable text", repr(v)[:60]))
+        else:
+            values["mujoco_model"] = v
     for key, low in _VECTORS.items():
         if key in table:
             v = table[key]

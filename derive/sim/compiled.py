@@ -55,14 +55,16 @@ class LoopBuild:
     W: tuple[tuple[float, ...], ...]
     Binv: tuple[float, ...]
     observer: str = "explicit"       # the controller's observer step (derive generate --observer)
+    plants: tuple[str, ...] = ("derive",)   # the loops it holds: derive's plant, MuJoCo's (derive.sim.mujoco.loop)
 
 
-def loop_sources(d, observer: str = "explicit") -> dict[str, str]:
-    """The controller's C (double, runtime parameters, the observer step ``observer``) and the loop driver."""
+def loop_sources(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",)) -> dict[str, str]:
+    """The controller's C (double, runtime parameters, the observer step ``observer``) and the loop driver
+    of each of ``plants`` (derive's: templates/sim/loop.c.jinja; MuJoCo's: templates/sim/mujoco_loop.c.jinja)."""
     from derive.codegen.kernels import ParamsMode
     from derive.codegen.render import render
     from derive.codegen.views import arm_view
-    from derive.sim.kernels import sim_kernels
+    from derive.sim.kernels import external_plant_functions, sim_kernels
 
     a = d.arm.name
     v = arm_view(d, "double", ParamsMode.RUNTIME, observer=observer)
@@ -71,37 +73,52 @@ def loop_sources(d, observer: str = "explicit") -> dict[str, str]:
     forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "",
                            init_takes_dt(f, observer))
                   for f in FORMS.values())  # every form of the registry derive.codegen.forms
-    out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
+    if "mujoco" in plants:
+        out[f"{a}_mj.c"] = render("sim/mujoco_loop.c.jinja", v=v, kernels=sim_kernels(d, external_plant_functions(d.n)),
+                                  forms=forms)
+    if "derive" in plants:
+        out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
     return out
 
 
-def _compile(folder: Path, sources: dict[str, str], arm: str) -> Path:
+def _flags(plants: tuple[str, ...]) -> list[str]:
+    """Compiler and linker flags beyond FLAGS for the loops of ``plants``."""
+    if "mujoco" in plants:
+        from derive.sim.mujoco import compile_flags
+
+        return compile_flags()
+    return []
+
+
+def _compile(folder: Path, sources: dict[str, str], arm: str, plants: tuple[str, ...] = ("derive",)) -> Path:
     cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if cc is None:
         raise DeriveError("compiled simulation: expected a C compiler (cc, gcc or clang) on PATH, found none")
     for name, text in sources.items():
         (folder / name).write_text(text)
     so = folder / f"lib{arm}_sim.so"
-    cmd = [cc, *FLAGS, "-o", str(so), *(str(folder / name) for name in sorted(sources) if name.endswith(".c")), "-lm"]
+    cmd = [cc, *FLAGS, "-o", str(so), *(str(folder / name) for name in sorted(sources) if name.endswith(".c")),
+           *_flags(plants), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode:
         raise DeriveError(f"compiled simulation: compiling the loop failed:\n{proc.stderr[-2000:]}")
     return so
 
 
-def build(d, observer: str = "explicit") -> LoopBuild:
+def build(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",)) -> LoopBuild:
     """Render and compile the loop of derivation ``d`` with the controller's observer step
-    ``observer`` (derive.codegen.kernels.OBSERVER_STEPS; about a second for two joints)."""
-    sources = loop_sources(d, observer)
+    ``observer`` (derive.codegen.kernels.OBSERVER_STEPS; about a second for two joints) around
+    each of ``plants`` (derive's, MuJoCo's: one library, the controller compiled once)."""
+    sources = loop_sources(d, observer, plants)
     key = hashlib.sha256("\0".join(f"{k}\0{v}" for k, v in sorted(sources.items())).encode()).hexdigest()
     with tempfile.TemporaryDirectory(prefix="derive-loop-") as tmp:
-        library = _compile(Path(tmp), sources, d.arm.name).read_bytes()
+        library = _compile(Path(tmp), sources, d.arm.name, plants).read_bytes()
     W = np.array(d.W.tolist(), dtype=float)
     return LoopBuild(key=key, arm=d.arm.name, n=d.n, sources=tuple(sorted(sources.items())), library=library,
                      forms=tuple(FORMS), ctl_values=tuple(float(v) for _, v in d.values),
                      limits=tuple(float(m.input_limit) if m.input_limit else 0.0 for m in d.arm.motors),
                      W=tuple(map(tuple, W)), Binv=tuple(1.0 / np.array(d.B.tolist(), dtype=float).diagonal()),
-                     observer=observer)
+                     observer=observer, plants=tuple(plants))
 
 
 _LOADED: dict[str, tuple[tempfile.TemporaryDirectory, ctypes.CDLL]] = {}
@@ -118,12 +135,14 @@ def load(b: LoopBuild) -> ctypes.CDLL:
     try:
         lib = ctypes.CDLL(str(so))
     except OSError:  # another platform than the one that built it (a remote worker): build here
-        lib = ctypes.CDLL(str(_compile(Path(tmp.name), dict(b.sources), b.arm)))
-    fn = getattr(lib, f"{b.arm}_sim_run")
+        lib = ctypes.CDLL(str(_compile(Path(tmp.name), dict(b.sources), b.arm, b.plants)))
     dp = ctypes.POINTER(ctypes.c_double)
-    fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp, dp,
-                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
-    fn.restype = ctypes.c_int
+    if "derive" in b.plants:
+        fn = getattr(lib, f"{b.arm}_sim_run")
+        fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp,
+                       dp, dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp,
+                       ctypes.POINTER(ctypes.c_long), dp]
+        fn.restype = ctypes.c_int
     _LOADED[b.key] = (tmp, lib)
     return lib
 
@@ -150,30 +169,43 @@ class RawRun:
     fail_input: np.ndarray
 
 
+def _f64(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
 def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous, disturbance, u_clip, r: np.ndarray,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
              substeps: int, f0=None) -> RawRun:
     """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample);
     ``f0``: the reference filter's start (y_d, y_d'), None: at rest at 0."""
+    plant = [_ptr(_f64(a)) for a in (values, coulomb, viscous, disturbance, u_clip)]
+    return run_entry(b, f"{b.arm}_sim_run", plant, form, protected, r, nq, ndq, alpha, x0, state0, dt, substeps,
+                     f0)
+
+
+def run_entry(b: LoopBuild, entry: str, plant_args: list, form: str, protected: bool, r: np.ndarray,
+              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
+              substeps: int, f0=None) -> RawRun:
+    """One whole run of the loop function ``entry`` of ``b``, its plant's arguments ``plant_args``
+    (ctypes values that stay alive during the call) between the step sizes and the controller's
+    parameters (templates/sim/loop.c.jinja); ``f0``: the reference filter's start (y_d, y_d'),
+    None: at rest at 0."""
     if form not in b.forms:
         raise DeriveError(f"compiled simulation: controller form {form!r} is not in the registry "
                           f"derive.codegen.forms (known: {', '.join(b.forms)})")
     lib = load(b)
     n, steps = b.n, r.shape[0]
-    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
     limits = [lim if protected else 0.0 for lim in b.limits]
-    cp = f64(list(b.ctl_values) + limits)
+    cp = _f64(list(b.ctl_values) + limits)
     out = {k: np.zeros((steps, n)) for k in ("theta", "dtheta", "yd", "u", "state", "filtered")}
     fail_step = ctypes.c_long(-1)
     fail_input = np.zeros(5 * n)
-    args = [f64(values), f64(coulomb), f64(viscous), f64(disturbance), f64(u_clip), cp, f64(r),
-            None if nq is None else f64(nq), None if ndq is None else f64(ndq)]
+    args = [cp, _f64(r), None if nq is None else _f64(nq), None if ndq is None else _f64(ndq)]
     keep = list(args)  # the arrays must outlive the call
-    code = getattr(lib, f"{b.arm}_sim_run")(
-        b.forms.index(form), steps, substeps, dt, dt / substeps, *map(_ptr, args), alpha, _ptr(f64(x0)),
-        _ptr(None if f0 is None else f64(f0)),
-        _ptr(None if state0 is None else f64(state0)), *(_ptr(out[k]) for k in out), ctypes.byref(fail_step),
-        _ptr(fail_input))
+    code = getattr(lib, entry)(
+        b.forms.index(form), steps, substeps, dt, dt / substeps, *plant_args, *map(_ptr, args), alpha,
+        _ptr(_f64(x0)), _ptr(None if f0 is None else _f64(f0)), _ptr(None if state0 is None else _f64(state0)),
+        *(_ptr(out[k]) for k in out), ctypes.byref(fail_step), _ptr(fail_input))
     del keep
     cut = fail_step.value if code else steps
     return RawRun(*(out[k][:cut] for k in ("theta", "dtheta", "yd", "u", "state", "filtered")), code=int(code),

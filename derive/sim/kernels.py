@@ -16,7 +16,10 @@ only sequences the kernels and the generated controller's steps.
   u, d and r are held over the step (zero-order hold);
 * measure(x, n_q, n_dq, v, alpha) -> (theta_m, v'): measured angles theta + n_q and
   the tachometer filter v' = v + alpha (theta' + n_dq - v) (section 5.1);
-* reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d.
+* reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d;
+* reference_rk4(f, r, h) -> f': the RK4 step of the reference filter alone, and
+  friction(dtheta, tauc) -> tau_c tanh(theta'/0.01): what a plant that is not derived
+  here (MuJoCo's, derive.sim.mujoco) takes from the simulator.
 """
 from __future__ import annotations
 
@@ -76,7 +79,7 @@ def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> 
 
     def deriv(xs, fs):
         acc = F(xs[:n], xs[n:], u, dist, tau_c, visc, p)
-        return ca.vertcat(xs[n:], acc), ca.vertcat(fs[n:], r - GR_DAMPING * fs[n:] - fs[:n])
+        return ca.vertcat(xs[n:], acc), _filter(fs, r)
 
     k1 = deriv(x, f)
     k2 = deriv(x + h / 2 * k1[0], f + h / 2 * k1[1])
@@ -88,20 +91,55 @@ def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> 
                        ["x", "f", "u", "d", "tauc", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
 
 
+def _filter(f, r):
+    """f' of the reference filter Gr(s) = 1 / (s^2 + 1.8 s + 1), states f = (y_d, y_d')."""
+    n = f.shape[0] // 2
+    return ca.vertcat(f[n:], r - GR_DAMPING * f[n:] - f[:n])
+
+
+def reference_rk4_function(n: int) -> ca.Function:
+    """reference_rk4(f, r, h) -> f_next: the classical RK4 step of length h of the reference
+    filter alone, r held (the same stages as :func:`rk4_function` gives f)."""
+    f, r, h = ca.SX.sym("f", 2 * n), ca.SX.sym("r", n), ca.SX.sym("h")
+    k1 = _filter(f, r)
+    k2 = _filter(f + h / 2 * k1, r)
+    k3 = _filter(f + h / 2 * k2, r)
+    k4 = _filter(f + h * k3, r)
+    return ca.Function("reference_rk4", [f, r, h], [f + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)], ["f", "r", "h"],
+                       ["f_next"], {"cse": True})
+
+
+def friction_function(n: int) -> ca.Function:
+    """friction(dtheta, tauc) -> tau_c tanh(theta'/0.01): the plant's smooth Coulomb friction
+    (derive.sim.plant.SMOOTH), as :func:`accel_spec` subtracts it."""
+    v, tau_c = ca.SX.sym("dtheta", n), ca.SX.sym("tauc", n)
+    return ca.Function("friction", [v, tau_c], [tau_c * ca.tanh(v / SMOOTH)], ["dtheta", "tauc"], ["tau"],
+                       {"cse": True})
+
+
 def reference_function(n: int) -> ca.Function:
     """reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d of Gr(s) (section 5.2)."""
     f, r = ca.SX.sym("f", 2 * n), ca.SX.sym("r", n)
     return ca.Function("reference", [f, r], [r - GR_DAMPING * f[n:] - f[:n]], ["f", "r"], ["ddyd"], {"cse": True})
 
 
-def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
-    """rk4, measure and reference as CasADi functions (see the module docstring)."""
-    n = d.n
+def measure_function(n: int) -> ca.Function:
+    """measure(x, nq, ndq, v, alpha) -> (theta_m, v_next) (see the module docstring)."""
     x = ca.SX.sym("x", 2 * n)
     nq, ndq, v, alpha = ca.SX.sym("nq", n), ca.SX.sym("ndq", n), ca.SX.sym("v", n), ca.SX.sym("alpha")
-    measure = ca.Function("measure", [x, nq, ndq, v, alpha], [x[:n] + nq, v + alpha * (x[n:] + ndq - v)],
-                          ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})
-    return rk4_function(d), measure, reference_function(n)
+    return ca.Function("measure", [x, nq, ndq, v, alpha], [x[:n] + nq, v + alpha * (x[n:] + ndq - v)],
+                       ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})
+
+
+def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
+    """rk4, measure and reference as CasADi functions (see the module docstring)."""
+    return rk4_function(d), measure_function(d.n), reference_function(d.n)
+
+
+def external_plant_functions(n: int) -> tuple[ca.Function, ...]:
+    """measure, reference, reference_rk4 and friction: the kernels of a loop whose plant is
+    integrated elsewhere (derive.sim.mujoco)."""
+    return measure_function(n), reference_function(n), reference_rk4_function(n), friction_function(n)
 
 
 @dataclass(frozen=True)
@@ -115,10 +153,11 @@ class SimKernel:
     operations: int
 
 
-def sim_kernels(d: Derivation) -> tuple[SimKernel, ...]:
-    """The simulator kernels printed as double C (static functions of the loop)."""
+def sim_kernels(d: Derivation, functions: tuple[ca.Function, ...] | None = None) -> tuple[SimKernel, ...]:
+    """The simulator kernels (default: :func:`sim_functions`) printed as double C (static
+    functions of the loop)."""
     out = []
-    for fn in sim_functions(d):
+    for fn in sim_functions(d) if functions is None else functions:
         printed = print_function(fn, "c", "double")
         args = tuple(f"const double {fn.name_in(i)}[{fn.size1_in(i)}]" for i in range(fn.n_in()))
         args += tuple(f"double {fn.name_out(i)}[{fn.size1_out(i)}]" for i in range(fn.n_out()))

@@ -10,7 +10,8 @@ vector, the Python reference puts them into the SymPy matrices):
   masses (a heavier payload of the same shape);
 * ``viscous_friction`` is an extra viscous friction b theta' beside the model's;
 * ``link_mass_scale`` multiplies each link's mass and its inertia about the
-  centre of mass (the same shape, heavier); ``torque_constant_scale``,
+  centre of mass (the same shape, heavier; for a URDF or DH arm, the mass, first
+  moment and inertia of the body joint i moves); ``torque_constant_scale``,
   ``voltage_constant_scale`` and ``resistance_scale`` the motors' constants.
 
 Coulomb friction tau_c tanh(theta'/0.01) and the disturbance d (eq. 12) enter the
@@ -29,6 +30,7 @@ from derive.dynamics.program import dag_xreplace, lambdify
 from derive.model.simspec import SimSettings
 
 SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
+BODY_UNITS = ("kg", "kg m", "kg m^2")   # the body parameters link_mass_scale multiplies
 
 
 @dataclass(frozen=True)
@@ -68,13 +70,18 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
     for i, f in enumerate(s.link_mass_scale, 1):
         put(f"link[{i}].mass", f)
         put(f"link[{i}].inertia", f)
+    if d.arm.spatial is not None:   # a URDF or DH body: its mass, first moment and inertia, the same shape
+        units = {p.symbol: p.unit for p in d.dynamics.chain.parameters}
+        for body, f in zip(d.dynamics.chain.bodies, s.link_mass_scale):
+            used = body.mass.free_symbols | body.first_moment.free_symbols | body.inertia.free_symbols
+            scale.update({sym: f for sym in used if units.get(sym) in BODY_UNITS and sym in values})
     for key, factors in (("torque_constant", s.torque_constant_scale), ("voltage_constant", s.voltage_constant_scale),
                          ("resistance", s.resistance_scale)):
         for i, f in enumerate(factors, 1):
             put(f"motor[{i}].{key}", f)
     changed = {}
     for sym, f in scale.items():
-        if f != 1.0:
+        if values[sym] * f != values[sym]:
             changed[str(sym)] = (values[sym], values[sym] * f)
             values[sym] *= f
     u_max = tuple(float(m.input_limit) if m.input_limit else math.inf for m in d.arm.motors)
@@ -86,7 +93,10 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
 class Plant:
     """The Python reference plant: x' = f(x, u) for x = (theta, theta'), the
     SymPy J and G lambdified in the parameter symbols, solved by numpy; one row
-    per run, so that several controllers step in lockstep (derive.sim.simulate.run_many)."""
+    per run, so that several controllers step in lockstep (derive.sim.simulate.run_many).
+
+    It is a :class:`derive.sim.plants.SteppedPlant`: ``reset``, ``step`` (classical RK4
+    with u held), ``keep``, ``theta``, ``dtheta``."""
 
     def __init__(self, d: Derivation, plant: TruePlant):
         dyn = d.dynamics
@@ -117,3 +127,63 @@ class Plant:
             G[:, i] = vals[self._n2 + i]
         rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH) - self.viscous * dq
         return np.linalg.solve(J, rhs[..., None])[..., 0]
+
+    def reset(self, theta0, rows: int) -> None:
+        """``rows`` copies at rest at the angles ``theta0`` (n)."""
+        self.x = np.tile(np.concatenate([np.asarray(theta0, dtype=float), np.zeros(self.n)]), (rows, 1))
+
+    def step(self, u: np.ndarray, dt: float, substeps: int) -> None:
+        """Advance every row by dt under its u (rows x n, held): ``substeps`` classical RK4 steps."""
+        n, h = self.n, dt / substeps
+
+        def f(x):
+            return np.concatenate([x[:, n:], self.accel(x[:, :n], x[:, n:], u)], axis=1)
+
+        x = self.x
+        for _ in range(substeps):
+            k1 = f(x)
+            k2 = f(x + h / 2 * k1)
+            k3 = f(x + h / 2 * k2)
+            k4 = f(x + h * k3)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        self.x = x
+
+    def keep(self, rows: list[int]) -> None:
+        """Keep only these rows (the runs that go on)."""
+        self.x = self.x[rows]
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.x[:, :self.n]
+
+    @property
+    def dtheta(self) -> np.ndarray:
+        return self.x[:, self.n:]
+
+
+RK4_REAL_LIMIT = 2.785293563405282   # the classical RK4 is stable for h lambda in [-2.785, 0] on the real axis
+
+
+def stiffest_mode(d: Derivation, s: SimSettings, coulomb=None) -> dict:
+    """The fastest decay rate lambda [1/s] of the plant's velocities at the initial pose, the
+    largest eigenvalue of J^-1 D with D the damping of each joint (back-EMF, bv, [simulation]
+    viscous_friction and the smooth Coulomb friction's slope tau_c / 0.01 at rest), and h lambda
+    for the RK4 step h = sample_time / substeps: above RK4_REAL_LIMIT the integration of either
+    plant (derive's or MuJoCo's, the same scheme) is unstable in that mode and its trajectory
+    wrong; ``substeps`` is then the smallest count that is stable. ``coulomb``: the tau_c [N m]
+    per joint the plant applies as the smooth law (derive.sim.plants.PlantSource.coulomb;
+    default [simulation] coulomb_friction, derive's plant; MuJoCo's leaves it out where the
+    file's friction loss replaces it)."""
+    from derive.model.actuators import terms
+
+    plant = true_plant(d, s)
+    rep = {sym: sp.Float(v, 17) for (sym, _), v in zip(d.values, plant.values)}
+    theta = list(d.dynamics.sym.theta)
+    J = np.array(lambdify(theta, [x.xreplace(rep) for x in d.dynamics.J])(*s.initial_theta), dtype=float)
+    damping = np.array([float(terms(a)[1].xreplace(rep)) for a in d.dynamics.chain.actuators])
+    tau_c = np.array(plant.coulomb if coulomb is None else coulomb, dtype=float)
+    damping += np.array(plant.viscous) + tau_c / SMOOTH
+    rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(d.n, d.n), np.diag(damping))).real))
+    h = s.sample_time / s.substeps
+    return {"rate": rate, "h_rate": rate * h, "stable": rate * h <= RK4_REAL_LIMIT,
+            "substeps": max(s.substeps, math.ceil(rate * s.sample_time / RK4_REAL_LIMIT))}

@@ -80,3 +80,27 @@ def error_figure(traces: list[Trace]) -> bytes:
     fig.suptitle("tracking error")
     fig.tight_layout()
     return _png(fig)
+
+
+def difference_figure(traces: list[Trace], others: list[Trace], name: str, other: str) -> bytes:
+    """theta of plant ``name`` minus theta of plant ``other`` [rad], per link, for every
+    controller both ran (derive simulate --compare)."""
+    by_name = {tr.name: tr for tr in others}
+    n = traces[0].theta.shape[1]
+    fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
+    for i in range(n):
+        ax = axes[i, 0]
+        for tr in traces:
+            o = by_name.get(tr.name)
+            if o is None:
+                continue
+            k = min(len(tr.t), len(o.t))
+            color, ls = STYLE.get(tr.name, ("k", "-"))
+            ax.plot(tr.t[:k], tr.theta[:k, i] - o.theta[:k, i], color=color, ls=ls, lw=1, label=_label(tr))
+        ax.set_ylabel(f"dtheta{i + 1} [rad]")
+        ax.grid(True, lw=0.3)
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.suptitle(f"theta on the {name} plant minus theta on the {other} plant")
+    fig.tight_layout()
+    return _png(fig)

@@ -17,7 +17,8 @@ pulse train is added to it (derive.sim.start).
 Two loops run the same experiment: :func:`run_compiled` (the whole loop in C,
 derive.sim.compiled: the default) and :func:`run_many` (the Python-stepped
 reference, one numpy row per controller variant); they agree to 1e-9
-(tests/test_compiled_loop.py). A controller that refuses a sample ends its run
+(tests/test_compiled_loop.py). Either runs any plant of derive.sim.plants (this
+derivation's, or MuJoCo's: :func:`run_compiled_with`, a SteppedPlant). A controller that refuses a sample ends its run
 with a :class:`Failure` (time, error, joint, likely cause); the others go on.
 """
 from __future__ import annotations
@@ -166,9 +167,9 @@ def tracking_error(d: Derivation, yd: np.ndarray, theta: np.ndarray) -> np.ndarr
     return e
 
 
-def _trace(name: str, s: SimSettings, plant: TruePlant | Plant, form: str, theta, dtheta, yd, u, dhat,
+def _trace(name: str, s: SimSettings, u_max, form: str, theta, dtheta, yd, u, dhat,
            failure: Failure | None, d: Derivation) -> Trace:
-    u_max = np.asarray(plant.u_max, dtype=float)
+    u_max = np.asarray(u_max, dtype=float)
     t = np.arange(len(theta)) * s.sample_time
     sat = np.abs(u) >= u_max * (1 - 1e-12)
     return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure,
@@ -195,16 +196,17 @@ def momentum_estimate(d: Derivation):
     return f
 
 
-def run(d: Derivation, backend, plant: Plant, s: SimSettings, name: str, show: bool = False) -> Trace:
+def run(d: Derivation, backend, plant, s: SimSettings, name: str, show: bool = False) -> Trace:
     """The Python-stepped reference run of one controller variant (see :func:`run_many`)."""
     return run_many(d, backend, plant, s, [name], show)[name]
 
 
-def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: bool = False) -> dict[str, Trace]:
+def run_many(d: Derivation, backend, plant, s: SimSettings, names, show: bool = False) -> dict[str, Trace]:
     """The Python-stepped reference: simulate controller variants (see VARIANTS)
     for ``s.duration`` seconds, the controllers of ``backend`` (python or c) called
-    once per sample, the plants integrated by numpy in lockstep (one row per
-    variant: each row does exactly the arithmetic of a run of its own). ``show``:
+    once per sample, the plants (a :class:`derive.sim.plants.SteppedPlant`: derive's
+    :class:`Plant`, integrated by numpy, or MuJoCo's) stepped in lockstep, one row per
+    variant (each row does exactly the arithmetic of a run of its own). ``show``:
     a progress bar on a terminal (derive.progress)."""
     n, dt = d.n, s.sample_time
     runs = []
@@ -221,7 +223,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
     y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
     r_all = pulses(s, n, steps) + y0
     rows = len(runs)
-    x = np.tile(np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)]), (rows, 1))  # at rest
+    plant.reset(np.array(s.initial_theta, dtype=float), rows)   # at rest
     f = np.concatenate([y0, np.zeros(n)])   # reference filter states (y, y') per link, the same for every run
     dq_filtered = np.zeros((rows, n))
     out = {k: np.zeros((rows, steps, n)) for k in ("theta", "dtheta", "yd", "u", "dhat")}
@@ -235,8 +237,9 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
         r = r_all[k]
         yd, dyd = f[:n], f[n:]
         ddyd = r - 1.8 * dyd - yd
-        q_meas = x[:, :n] + rng.normal(0.0, 1.0, n) * np.array(s.position_noise)
-        dq_meas = x[:, n:] + rng.normal(0.0, 1.0, n) * np.array(s.velocity_noise)
+        theta, dtheta = plant.theta, plant.dtheta
+        q_meas = theta + rng.normal(0.0, 1.0, n) * np.array(s.position_noise)
+        dq_meas = dtheta + rng.normal(0.0, 1.0, n) * np.array(s.velocity_noise)
         dq_filtered = dq_meas if k == 0 else dq_filtered + alpha * (dq_meas - dq_filtered)
         u = np.zeros((len(live), n))
         dead = []
@@ -257,17 +260,20 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
                 failures[j], ended[j] = diagnose(d, s, name, k, exc.code, inp), k
                 dead.append(row)
                 continue
-            out["theta"][j, k], out["dtheta"][j, k], out["yd"][j, k], out["u"][j, k] = x[row, :n], x[row, n:], yd, u[row]
+            out["theta"][j, k], out["dtheta"][j, k], out["yd"][j, k], out["u"][j, k] = theta[row], dtheta[row], yd, u[row]
         if dead:
             keep = [row for row in range(len(live)) if row not in dead]
-            live, x, u, dq_filtered = [live[row] for row in keep], x[keep], u[keep], dq_filtered[keep]
+            live, u, dq_filtered = [live[row] for row in keep], u[keep], dq_filtered[keep]
+            plant.keep(keep)
             if not live:
                 break
+        plant.step(u, dt, s.substeps)
         for _ in range(s.substeps):
-            x, f = _rk4(plant, x, f, u, r, h)
+            f = _reference_rk4(f, r, h)
     bar.close()
-    return {name: _trace(name, s, plant, form, *(out[key][j, :ended[j]] for key in ("theta", "dtheta", "yd", "u",
-                                                                                    "dhat")), failures[j], d)
+    return {name: _trace(name, s, plant.u_max, form, *(out[key][j, :ended[j]] for key in ("theta", "dtheta", "yd",
+                                                                                          "u", "dhat")),
+                         failures[j], d)
             for j, (name, form, _) in enumerate(runs)}
 
 
@@ -276,6 +282,16 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     run as :func:`run`, with the whole loop in C and Python called once."""
     from derive.sim.compiled import run_loop
 
+    def call(form, protected, *rest, f0=None):
+        return run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance,
+                        plant.u_max, *rest, f0=f0)
+    return run_compiled_with(d, loop, plant.u_max, s, name, call)
+
+
+def run_compiled_with(d: Derivation, loop, u_max, s: SimSettings, name: str, call) -> Trace:
+    """One controller variant through a compiled loop ``call(form, protected, r, nq, ndq,
+    alpha, x0, state0, dt, substeps, f0=...) -> derive.sim.compiled.RawRun`` of any plant
+    (derive.sim.plants): inputs prepared and the trace made as :func:`run_compiled` does."""
     form, protected = VARIANTS[name]
     n, dt = d.n, s.sample_time
     steps = int(round(s.duration / dt))
@@ -286,31 +302,28 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     if name == "dobc_zero_init":  # z(0) = -W theta'_measured(0), as the reference sets it
         state0 = -(W @ (x0[n:] + (ndq[0] if ndq is not None else 0.0)))
     y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
-    raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance, plant.u_max,
-                   pulses(s, n, steps) + y0, nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps,
-                   f0=np.concatenate([y0, np.zeros(n)]))
+    raw = call(form, protected, pulses(s, n, steps) + y0, nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps,
+               f0=np.concatenate([y0, np.zeros(n)]))
     dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
     if form == "mom":
         measured = raw.theta + (nq[:len(raw.theta)] if nq is not None else 0.0)
         dhat = momentum_estimate(d)(measured, raw.filtered, raw.state)
     failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None
-    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure, d)
+    return _trace(name, s, u_max, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure, d)
 
 
-def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarray, h: float):
-    """One RK4 step of the plants x (runs x 2n) and the reference filter f (2n), u and r held."""
-    n = plant.n
+def _reference_rk4(f: np.ndarray, r: np.ndarray, h: float) -> np.ndarray:
+    """One RK4 step of the reference filter f = (y_d, y_d') (2n), r held (section 5.2)."""
+    n = len(f) // 2
 
-    def deriv(x, f):
-        return (np.concatenate([x[:, n:], plant.accel(x[:, :n], x[:, n:], u)], axis=1),
-                np.concatenate([f[n:], r - 1.8 * f[n:] - f[:n]]))
+    def deriv(f):
+        return np.concatenate([f[n:], r - 1.8 * f[n:] - f[:n]])
 
-    k1 = deriv(x, f)
-    k2 = deriv(x + h / 2 * k1[0], f + h / 2 * k1[1])
-    k3 = deriv(x + h / 2 * k2[0], f + h / 2 * k2[1])
-    k4 = deriv(x + h * k3[0], f + h * k3[1])
-    return (x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-            f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+    k1 = deriv(f)
+    k2 = deriv(f + h / 2 * k1)
+    k3 = deriv(f + h / 2 * k2)
+    k4 = deriv(f + h * k3)
+    return f + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float | Undefined]]:

@@ -64,11 +64,13 @@ def sample_settings(base: SimSettings, spec: SweepSpec, index: int, n: int) -> t
 
 @dataclass(frozen=True)
 class Payload:
-    """What every worker needs once: the arm, the compiled loop, the controllers."""
+    """What every worker needs once: the arm, the compiled loop, the controllers, the plant
+    (derive.sim.plants: derive's, or MuJoCo's with its stripped model file)."""
 
     arm: Arm
     loop: object   # derive.sim.compiled.LoopBuild
     names: tuple[str, ...]
+    plant: object = None   # derive.sim.plants.PlantSource; None: derive's
 
 
 @dataclass(frozen=True)
@@ -92,19 +94,20 @@ def run_chunk(payload: Payload, jobs: list[tuple[int, SimSettings, dict]]) -> li
     """Run samples (index, settings, drawn) in this process; the derivation is made
     once per process (a worker on another machine gets the arm, not SymPy objects)."""
     from derive.control.pipeline import derive
-    from derive.sim.simulate import metrics, run_compiled, true_plant
+    from derive.sim.plants import DerivedPlant
+    from derive.sim.simulate import metrics
 
     key = payload.loop.key
     if key not in _DERIVED:
         _DERIVED[key] = derive(payload.arm)
     d = _DERIVED[key]
+    plant = payload.plant or DerivedPlant()
     out = []
     for index, s, drawn in jobs:
-        plant = true_plant(d, s)
         res, fails, errs = {}, {}, {}
         t = None
         for name in payload.names:
-            tr = run_compiled(d, payload.loop, plant, s, name)
+            tr = plant.run(d, payload.loop, s, name)
             steps = int(round(s.duration / s.sample_time))
             stride = max(1, math.ceil(steps / ENVELOPE_POINTS))
             t = np.arange(0, steps, stride) * s.sample_time

@@ -115,9 +115,16 @@ def test_one_link_arm_tracks_just_below_the_limit_and_diverges_well_above_it(loo
 def test_simulate_refuses_a_sample_time_above_the_limit_unless_forced(tmp_path, capsys):
     args = ["simulate", str(SMALL_ARM), "--controllers", "npid", "--duration", "0.004", "--out", str(tmp_path / "s")]
     assert main(args) == 2
-    err = capsys.readouterr().err
-    assert "simulation.sample_time of f6_small_arm: sample_time = 2 ms is above the NPID limit 0.298 ms" in err
-    assert "or pass --force" in err and not (tmp_path / "s").exists()
+    err = " ".join(capsys.readouterr().err.split())
+    d = derive.derive(_small_arm())
+    exp, imp = limits(d)["npid"], limits(d, "implicit")["npid"]
+    assert (f"simulation.sample_time of f6_small_arm: sample_time = 2 ms is above the NPID limit "
+            f"{exp.limit * 1e3:.3g} ms (the sampled loop is unstable from {exp.raw * 1e3:.3g} ms") in err
+    assert 0.29e-3 < exp.limit < 0.31e-3 and imp.limit > 0.1   # 2 J / w explicit; the predictive law's, implicit
+    # the refusal names --observer implicit and the limit of each refused form with it
+    assert f"with --observer implicit the NPID limit is {imp.limit * 1e3:.3g} ms, which allows it" in err
+    assert "use --observer implicit where it allows the sample time, or pass --force" in err
+    assert not (tmp_path / "s").exists()
     assert main(args + ["--force"]) == 0          # two samples: not yet diverged
     assert main(["simulate", str(SMALL_ARM), "--controllers", "mpc", "--duration", "0.004",
                  "--out", str(tmp_path / "m")]) == 0   # the predictive law alone is within its limit

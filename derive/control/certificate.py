@@ -293,6 +293,7 @@ class Report:
     stated_decision: Decision | None
     unbounded: tuple[str, ...]
     seconds: float
+    constant: bool = False   # J depends on no coordinate: J' = 0, (*) is W + W^T - 2 beta J > 0, decided exactly
 
 
 TRIES = (0.99, 0.97, 0.9, 0.7, 0.5, 0.25, 0.1)
@@ -324,6 +325,15 @@ def report(d, W=None, budget: int = DEFAULT_BUDGET, samples: int = 4096) -> Repo
     shape = np.array([float(x) for x in speeds]) if stated else np.ones(d.n)
     cert = ObserverCertificate(model, shape)
     unbounded = tuple(str(c.symbol) for c in model.unbounded)
+    if model.m == 0:   # (*) does not depend on theta or theta': one matrix, decided exactly
+        rate = cert.rate_supremum(Wn, shape, 0.0, 1)   # lambda_min(J^-1/2 (W + W^T) J^-1/2) / 2: every beta below it
+        at_rest = cert.decide(Wn, shape, 1.0, 0.0, budget)
+        return Report(W=tuple(map(tuple, Wn.tolist())), shape=tuple(shape.tolist()), stated=stated,
+                      speed=math.inf if at_rest.verdict is Verdict.PROVED else 0.0,
+                      speed_sup=math.inf if at_rest.verdict is Verdict.PROVED else 0.0, speed_decision=at_rest,
+                      rate=max(rate, 0.0), rate_sup=max(rate, 0.0), rate_decision=at_rest,
+                      stated_decision=at_rest if stated else None, unbounded=(),
+                      seconds=time.perf_counter() - start, constant=True)
     # the search starts from the supremum of what the certificate can prove (the split's sound
     # form), the report states N's own numeric supremum
     sup_v = cert.speed_supremum(Wn, shape, 0.0, samples, exact=True)

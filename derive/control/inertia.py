@@ -32,20 +32,25 @@ def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray) -> tuple[np.ndarr
     """Bounds of |d^2 J/dq_j dq_k| and |d^3 J/dq_i dq_j dq_k| (m x m x n x n, m x m x m x n x n)
     valid for every q, from J's Fourier coefficients C_f (coef: K x n x n) at integer
     frequencies f (F: K x m): sum_f |C_f| |f_j f_k| and sum_f |C_f| |f_i f_j f_k|, each |C_f|
-    inflated by ROUNDING times the sum of all of them (the transform's rounding)."""
+    inflated by ROUNDING times the sum of all of them (the transform's rounding). One matrix
+    product over the K frequencies for every (j, k) and (i, j, k) at once."""
     m, n = F.shape[1], coef.shape[1]
-    mag = np.abs(coef)
+    second, third = np.zeros((m, m, n, n)), np.zeros((m, m, m, n, n))
+    if m == 0:
+        return second, third
+    mag = np.abs(coef).reshape(coef.shape[0], n * n)
     mag = mag + (ROUNDING * mag.sum(axis=0, keepdims=True) + 1e-300)
     absF = np.abs(F).astype(float)
-    second, third = np.zeros((m, m, n, n)), np.zeros((m, m, m, n, n))
-    for j in range(m):
-        for k in range(j, m):
-            w2 = absF[:, j] * absF[:, k]
-            second[j, k] = second[k, j] = np.tensordot(w2, mag, axes=(0, 0))
-            for i in range(k, m):
-                t = np.tensordot(w2 * absF[:, i], mag, axes=(0, 0))
-                for a_, b_, c_ in set(itertools.permutations((j, k, i))):
-                    third[a_, b_, c_] = t
+    pairs = [(j, k) for j in range(m) for k in range(j, m)]
+    triples = [(j, k, i) for j, k in pairs for i in range(k, m)]
+    weights = np.array([absF[:, j] * absF[:, k] for j, k in pairs]
+                       + [absF[:, j] * absF[:, k] * absF[:, i] for j, k, i in triples])
+    sums = (weights @ mag).reshape(-1, n, n)
+    for (j, k), s in zip(pairs, sums[:len(pairs)]):
+        second[j, k] = second[k, j] = s
+    for (j, k, i), t in zip(triples, sums[len(pairs):]):
+        for a_, b_, c_ in set(itertools.permutations((j, k, i))):
+            third[a_, b_, c_] = t
     return second, third
 
 
@@ -120,6 +125,9 @@ class InertiaModel:
         self.fourier: tuple[np.ndarray, np.ndarray] | None = None   # (C_f: K x n x n, f: K x m)
         if self.unbounded:
             return
+        if m == 0:   # J constant (one joint, or joints that move no inertia's shape): its own mean, no derivatives
+            self.fourier = (self.J(np.zeros((1, 0))).astype(complex), np.zeros((1, 0), dtype=int))
+            return
         trig = self._trig_polys(J, syms) if all(c.angle for c in self.deps) else None
         if trig is not None:
             for k, c in enumerate(self.deps):
@@ -175,11 +183,11 @@ class InertiaModel:
 
     def dJ(self, q: np.ndarray) -> np.ndarray:
         """dJ/dq_k at points q: N x m x n x n."""
-        return self._eval("dJ", q).reshape(-1, self.m, self.n, self.n)
+        return self._eval("dJ", q).reshape(q.shape[0], self.m, self.n, self.n)
 
     def d2J(self, q: np.ndarray) -> np.ndarray:
         """d^2 J/dq_j dq_k at points q: N x m x m x n x n."""
-        return self._eval("d2J", q).reshape(-1, self.m, self.m, self.n, self.n)
+        return self._eval("d2J", q).reshape(q.shape[0], self.m, self.m, self.n, self.n)
 
     # -- bounds ------------------------------------------------------------------------------
     def _trig_polys(self, J: sp.Matrix, syms: list[sp.Symbol]):

@@ -8,11 +8,21 @@ From a URDF to generated C in two commands::
 The arm file takes its chain from the URDF (base link: the root, or --base;
 tip link: the unique deepest leaf, or --tip), torque actuation (u is the motor
 torque, B = diag(gear ratio)), gear ratio 1 and no rotor inertia, gravity 9.81
-m/s^2 along -z of the base, and the default controller settings; every value
-the URDF does not give is written as an assumption with a comment, the joint
-limits as comments, the chain's notes (merged, locked, normalised) as
-comments. It never overwrites a file; the URDF path in it is relative to the
-arm file.
+m/s^2 along -z of the base; every value the URDF does not give is written as an
+assumption with a comment, the joint limits as comments, the chain's notes
+(merged, locked, normalised) as comments. It works as written:
+
+* ``max_joint_speed``: the URDF's velocity limits (DEFAULT_SPEED rad/s, an
+  assumption noted, where it gives none): the box the observer certificate and
+  the sample-time limits cover;
+* ``torque_limit``: each joint's effort limit (u is clipped to it);
+* ``w``: W = omega Jbar for this arm (derive.control.starter), certified on the
+  box by the same decision ``derive check`` makes;
+* ``[simulation] sample_time``: a round value at most 0.45 of the limits
+  estimated from W's largest observer rate and the momentum observer's gain.
+
+It never overwrites a file (checked before the derivation); the URDF path in
+it is relative to the arm file.
 """
 from __future__ import annotations
 
@@ -184,9 +194,10 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
     lo, hi = gain.rates
     rows = ",\n     ".join("[" + ", ".join(_g(x) for x in row) + "]" for row in gain.W)
     lines += [
-        "# The observer gain W (eq. 25; a full n x n W) [N m s/rad: p = W theta' is a torque]: W = omega Jbar,",
+        "# The observer gain W (eq. 25; a full n x n W) [N m s/rad, N s/m on a prismatic joint's row: p = W theta'",
+        "# is a joint torque, eq. 21-22]: W = omega Jbar,",
         "# Jbar the mean of J over the joint ranges, so that the observer rates, the eigenvalues of W J^-1",
-        f"# (eq. 24), are of one order: {_g(lo)} ... {_g(hi)} 1/s over the ranges (omega = {_g(gain.omega)} 1/s),",
+        f"# (eq. 24), spread only as far as J does: {_g(lo)} ... {_g(hi)} 1/s over the ranges (omega = {_g(gain.omega)} 1/s),",
         f"# the smallest omega the observer certificate proves on max_joint_speed ({gain.decision.verdict.value}, "
         f"{gain.decision.cells} cells)",
         "# with a margin. Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",

@@ -98,7 +98,8 @@ class Coordinate:
 def joint_coordinates(arm, theta: tuple[sp.Symbol, ...]) -> tuple[Coordinate, ...]:
     """The coordinates of an arm's joints (symbols ``theta``) with their kind and limits
     (planar arm files: revolute joints without limits; a chain's joints with the limits its
-    input states: a revolute joint's range, a prismatic joint's travel)."""
+    input states: a revolute joint's range, a prismatic joint's travel; a range of zero width,
+    lower >= upper, counts as none)."""
     chain = getattr(arm, "chain", None)
     out = []
     for i, q in enumerate(theta):
@@ -109,6 +110,8 @@ def joint_coordinates(arm, theta: tuple[sp.Symbol, ...]) -> tuple[Coordinate, ..
             angle = j.type.rotates
             if getattr(j.type, "value", "") == "revolute" or not angle:
                 lower, upper = j.limits.lower, j.limits.upper
+                if lower is not None and upper is not None and lower >= upper:
+                    lower = upper = None   # a zero-width range (some URDFs write 0, 0 for none): no range
         out.append(Coordinate(i, q, angle, None if lower is None else float(lower),
                               None if upper is None else float(upper)))
     return tuple(out)

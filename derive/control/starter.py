@@ -1,14 +1,14 @@
 """The observer gain and the sample time of a starter arm file (``derive init``).
 
 W is scaled by the arm's inertia so that the observer rates, the eigenvalues of W J^-1(theta)
-(eq. 24: the observer error e' = B (d - dhat) obeys e'' = -W J^-1 e', eq. a5), are of one order
-over the joint ranges:
+(eq. 24: the observer error e' = B (d - dhat) obeys e'' = -W J^-1 e', eq. a5), spread over the
+joint ranges only as far as J itself does (a light wrist no longer gets the base's gain):
 
     W = omega Jbar,   Jbar = the mean of J(theta) over configurations within the joint limits,
 
 symmetric and positive definite (a full W, which ``controller.w`` accepts as an n x n array). Its
-unit is J's over time, kg m^2/s = N m s/rad (V s/rad once divided by a motor's B): p = W theta'
-(eq. 22) is in the input's unit. W J^-1 = omega Jbar J^-1 is similar to a symmetric positive definite
+unit is J's over time, kg m^2/s = N m s/rad: p = W theta' is a joint torque (eq. 21 adds it to
+G - B u; B dhat = z + p, eq. 22). W J^-1 = omega Jbar J^-1 is similar to a symmetric positive definite
 matrix, so the rates are real and positive, omega at J = Jbar, and spread only as far as J varies
 over the ranges (a constant W cannot do better: the Panda's J varies 228-fold in some direction,
 and the W that minimises the largest rate for the same certificate is within 3 % of this one).
@@ -25,8 +25,10 @@ budget proves the same W).
 
 The sample time: with the forward-Euler observer step the fast mode steps by I - dt W J^-1, stable
 for dt < 2 / rate_max (derive.control.sampling: the DOBC and NPID limit), and the momentum
-observer's by 1 - dt K (dt < 2 / K); the value written is a round number (1, 2, 2.5 or 5 x 10^k s)
-at most HEADROOM of the smaller of 0.9 x those bounds, and at most 2 ms. ``derive check`` and
+observer's by 1 - dt K (dt < 2 / K); the value written is a round number (1, 2, 2.5, 4 or 5 x 10^k s)
+at most HEADROOM of the smaller of 0.9 x those bounds, and at most 2 ms. These are the limits at
+rest; at speed the sampled loop's limits are lower (the iiwa at its 10 rad/s box: DOBC 0.995 ms
+against 1.0 ms estimated, MOM 1.27 ms against 36 ms), which HEADROOM leaves room for. ``derive check`` and
 ``derive show`` print the limits themselves, over the speed box.
 """
 from __future__ import annotations
@@ -45,7 +47,7 @@ TRIES = 8
 FIRST_BUDGET = 20_000   # cells of the first try (derive check's budget: what proves here proves there)
 BUDGET = 5000        # cells of each later try (omega raised: fewer cells needed)
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
-HEADROOM = 0.5       # the sample time written is at most this fraction of the smallest estimated limit
+HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
 MAX_SAMPLE_TIME = 2e-3
 SAMPLES = 1024
 DIGITS = 4           # significant digits of W's entries as written
@@ -74,9 +76,9 @@ def _round(x: float) -> float:
 
 
 def round_sample_time(x: float) -> float:
-    """The largest of 1, 2, 2.5, 5 x 10^k not above x (x > 0)."""
+    """The largest of 1, 2, 2.5, 4, 5 x 10^k not above x (x > 0)."""
     k = math.floor(math.log10(x))
-    for m in (5.0, 2.5, 2.0, 1.0):
+    for m in (5.0, 4.0, 2.5, 2.0, 1.0):
         if m * 10.0 ** k <= x * (1 + 1e-12):
             return float(f"{m * 10.0 ** k:.3g}")
     return float(f"{10.0 ** (k - 1) * 5:.3g}")

@@ -12,7 +12,7 @@ import platform
 import sys
 import time
 
-SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "observer", "spatial")
+SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "observer", "spatial", "identify")
 
 
 def main(names: tuple[str, ...] = SECTIONS) -> int:

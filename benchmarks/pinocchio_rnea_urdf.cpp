@@ -6,8 +6,9 @@
 //   parent  R(9, row-major) p(3)  axis(3)  mass  lever(3)  I(6: xx xy xz yy yz zz)
 // every joint revolute about its unit axis (RX, RY, RZ when the axis is one of x, y, z).
 //
-// Usage: pinocchio_rnea_urdf MODEL_TEXT ITERATIONS REPEATS
-// Prints "nv <n>" and "ns rnea <best ns per call>" (best of REPEATS).
+// Usage: pinocchio_rnea_urdf MODEL_TEXT ITERATIONS REPEATS [regressor]
+// Prints "nv <n>" and "ns rnea <best ns per call>" (best of REPEATS); with "regressor" also
+// "ns regressor <best ns per call>" of computeJointTorqueRegressor(q, v, a) (benchmarks/identify.py).
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
@@ -16,6 +17,7 @@
 
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/algorithm/regressor.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
 
 namespace pin = pinocchio;
@@ -27,7 +29,10 @@ static double now() {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 4) { std::fprintf(stderr, "usage: %s MODEL_BINARY ITERATIONS REPEATS\n", argv[0]); return 2; }
+    if (argc != 4 && argc != 5) {
+        std::fprintf(stderr, "usage: %s MODEL_TEXT ITERATIONS REPEATS [regressor]\n", argv[0]);
+        return 2;
+    }
     pin::Model model;
     FILE *f = std::fopen(argv[1], "r");
     if (!f) return 2;
@@ -78,6 +83,20 @@ int main(int argc, char **argv) {
         const double t = now() - t0;
         if (t < best) best = t;
     }
-    std::printf("nv %d\nns rnea %.3f\nsink %g\n", (int)model.nv, best / (double)iterations * 1e9, acc);
+    std::printf("nv %d\nns rnea %.3f\n", (int)model.nv, best / (double)iterations * 1e9);
+    if (argc == 5 && std::string(argv[4]) == "regressor") {
+        double best_y = 1e300;
+        for (int r = 0; r < repeats; ++r) {
+            const double t0 = now();
+            for (long i = 0; i < iterations; ++i) {
+                const int s = (int)(i & (NS - 1));
+                acc += pin::computeJointTorqueRegressor(model, data, q[s], v[s], a[s])(0, 0);
+            }
+            const double t = now() - t0;
+            if (t < best_y) best_y = t;
+        }
+        std::printf("ns regressor %.3f\n", best_y / (double)iterations * 1e9);
+    }
+    std::printf("sink %g\n", acc);
     return 0;
 }

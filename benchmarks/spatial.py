@@ -110,8 +110,9 @@ def npid_step_ns(arm_name: str, n: int, c: Path, work: Path) -> float:
                               text=True).stdout, "npid_step")
 
 
-def pinocchio_rnea_ns(name: str, arm, work: Path) -> tuple[float | None, str]:
-    """(ns per call of Pinocchio's C++ rnea for the arm, "") or (None, why not)."""
+def pinocchio_rnea_ns(name: str, arm, work: Path, label: str = "rnea") -> tuple[float | None, str]:
+    """(ns per call of Pinocchio's C++ rnea for the arm, "") or (None, why not); ``label``
+    "regressor": of computeJointTorqueRegressor instead (benchmarks/identify.py)."""
     try:
         import pinocchio as pin
     except ImportError:
@@ -143,9 +144,10 @@ def pinocchio_rnea_ns(name: str, arm, work: Path) -> tuple[float | None, str]:
         lines.append(f"{model.parents[j]} " + " ".join(repr(float(v)) for v in values))
     text = work / "model.txt"
     text.write_text("\n".join(lines) + "\n")
-    out = subprocess.run([str(exe), str(text), str(ITERATIONS), str(REPEATS)], check=True, capture_output=True,
-                         text=True).stdout
-    return _ns(out, "rnea"), ""
+    extra = [] if label == "rnea" else [label]
+    out = subprocess.run([str(exe), str(text), str(ITERATIONS), str(REPEATS), *extra], check=True,
+                         capture_output=True, text=True).stdout
+    return _ns(out, label), ""
 
 
 def _ops(dyn, exprs) -> int:

@@ -50,5 +50,10 @@ class CoverageError(DeriveError, ValueError):
     """A kernel output depends on symbols that no input port provides."""
 
 
+class DataError(DeriveError, ValueError):
+    """A measured log, an excitation request or an estimate that cannot be used
+    (derive identify, derive excite): the message names the row, column or limit."""
+
+
 class EmitError(DeriveError, OSError):
     """The output folder cannot be written as asked."""

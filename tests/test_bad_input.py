@@ -349,8 +349,6 @@ NAME_CASES = [
     ("trailing-underscore", "arm_", "no trailing '_'"),
     ("casadi-prefix", "casadi_arm", "'casadi'"),
     ("casadi-work-vector", "iw", "CasADi"),
-    ("generated-theta1", "theta1", "a name derive generates"),
-    ("generated-u-star", "u_star", "a name derive generates"),
     ("clash-kernel", "glasgow_kernel", "an arm named 'glasgow'"),
     ("clash-kernels", "glasgow_kernels", "does not end in '_kernels'"),
     ("clash-selftest", "glasgow_selftest", "does not end in '_selftest'"),

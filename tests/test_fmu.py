@@ -487,3 +487,74 @@ def test_plant_fmu_applies_every_mismatch_of_the_simulation_section(tmp_path):
         arm_value = float(dict(d.values)[next(sym for sym, _ in d.values if str(sym) == key)])
         assert starts[key] == want[key] == pytest.approx(arm_value * factor, rel=1e-15), key
     assert "T1" not in starts and "w1" not in starts   # controller parameters are not the plant's
+
+
+def test_implicit_observer_dobc_fmu_equals_the_implicit_python_module(paper, tmp_path):
+    """derive fmu --observer implicit (issue 20 item 7): the DOBC FMU runs dobc_init with its step
+    (dhat(0) with W_dt) and the backward-Euler step, as the implicit Python module does (1e-12);
+    its dhat output is the estimate each step applied (read after the step, which moves z first)."""
+    from derive.codegen.emit import write_tree
+    from derive.codegen.files import generate_files
+
+    name, data = controller_fmu(paper, FmuOptions(3, "dobc", "double", ParamsMode.RUNTIME, observer="implicit"))
+    path = tmp_path / name
+    path.write_bytes(data)
+    md = read_model_description(str(path))
+    assert validate_fmu(str(path)) == [] and "implicit (backward-Euler) observer step" in md.description
+    write_tree(tmp_path / "py", generate_files(paper, None, "double", ParamsMode.RUNTIME, observer="implicit"))
+    spec = importlib.util.spec_from_file_location("implicit_fmu_ref", tmp_path / "py" / "python" /
+                                                  f"{paper.arm.name}.py")
+    m = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(m)
+    X = _inputs(paper.n, 40)
+    res = simulate_fmu(str(path), start_time=0.0, stop_time=40 * DT, output_interval=DT, input=_signal(md, X, DT),
+                       output=["u[1]", "u[2]", "dhat[1]", "dhat[2]"], fmi_type="CoSimulation")
+    p, s, want = m.Params(), m.DobcState(), []
+    for k, x in enumerate(X):
+        inp = m.Input(*(list(x[i * 2:(i + 1) * 2]) for i in range(5)))
+        if k == 0:
+            assert m.dobc_init(p, s, inp, DT) == m.OK
+        code, u, _ = m.dobc_step(p, s, inp, DT)
+        want.append([*u, *m.dobc_estimate(p, s, inp)[1]])
+    got = np.column_stack([res[k] for k in ("u[1]", "u[2]", "dhat[1]", "dhat[2]")])[1:]
+    np.testing.assert_allclose(got, np.array(want), rtol=1e-12, atol=1e-12 * np.max(np.abs(want)))
+    with pytest.raises(DeriveError, match=r"--observer: expected one of explicit, implicit, got 'trapezoid'"):
+        check_options(3, "dobc", "double", "runtime", None, "trapezoid")
+
+
+def test_plant_fmu_starts_the_reference_at_the_pose_when_the_arm_file_says_so(tmp_path):
+    """[simulation] reference_start = "measured": the plant FMU's y_d starts at C theta0 (its
+    tunable yd0) and the pulse train adds to it, as derive simulate's reference does."""
+    from derive.fmu import plant_fmu
+    from derive.model.spec import resolve_arm_path
+
+    text = resolve_arm_path(None).read_text() + '\n[simulation]\ninitial_theta = [0.3, -0.2]\nreference_start = ' \
+                                                '"measured"\nduration = 2.0\n'
+    (tmp_path / "arm.toml").write_text(text)
+    d = derive.derive(derive.load_arm(tmp_path / "arm.toml"))
+    name, data = plant_fmu(d, 3)
+    path = tmp_path / name
+    path.write_bytes(data)
+    plant, vr = _slave(path, tmp_path / "plant", "plant")
+    yd = [vr["yd[1]"], vr["yd[2]"]]
+    assert plant.getFloat64(yd) == [0.3, -0.2] and plant.getFloat64([vr["yd0[1]"], vr["yd0[2]"]]) == [0.3, -0.2]
+    for k in range(500):   # u = 0: the reference alone, 1 s
+        plant.doStep(k * DT, DT)
+    got = plant.getFloat64(yd)
+    plant.terminate()
+    plant.freeInstance()
+    from derive.sim.simulate import pulses
+    s = d.arm.simulation
+    r = pulses(s, 2, 500)  # the zero-start reference by the same RK4 steps, offset by the pose
+    f = np.zeros(4)
+    h = DT / s.substeps
+    for k in range(500):
+        for _ in range(s.substeps):
+            def deriv(f):
+                return np.concatenate([f[2:], r[k] - 1.8 * f[2:] - f[:2]])
+            k1 = deriv(f)
+            k2 = deriv(f + h / 2 * k1)
+            k3 = deriv(f + h / 2 * k2)
+            k4 = deriv(f + h * k3)
+            f = f + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    np.testing.assert_allclose(np.array(got) - [0.3, -0.2], f[:2], atol=1e-12)

@@ -103,7 +103,7 @@ def test_issue12_6_generated_python_and_c_mom_equal_the_symbolic_law_at_1e_12(pa
             mvec = list(np.round(rng.uniform(-1, 1, n) * 1024) / 1024)
             dt = float(rng.choice([1e-3, 1e-2]))
             want_u, want_m = ref.mom_step(mvec, x, dt)
-            c.init(x)
+            c.init(x, dt)
             assert _close(c.state, ref.mom_init(x))
             c.state = mvec
             assert _close(c.step(x, dt), want_u) and _close(c.state, want_m)

@@ -163,13 +163,35 @@ def test_simulate_cli_writes_plots_metrics_and_json(tmp_path):
             assert all((link[k] is None) == (f"{k}_undefined" in link) for k in keys), link
 
 
+def test_simulate_json_into_the_out_folder_that_does_not_exist_yet(tmp_path, monkeypatch):
+    """Issue 20 item 7: `simulate --out sim --json sim/metrics.json` failed when sim/ did not exist;
+    now the JSON is written into the folder after derive's own files (as before, not listed in its
+    MANIFEST.json, so a second run replaces it), and a JSON in a folder elsewhere that does not
+    exist yet is written after its folder is made."""
+    from derive.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--duration", "0.2", "--controllers", "npid", "--out", "sim",
+                 "--json", "sim/metrics.json"]) == 0
+    data = jsonio.loads((tmp_path / "sim" / "metrics.json").read_text())
+    assert set(data["controllers"]) == {"npid"} and data["_units"]["control_effort"] == "V"
+    assert "metrics.json" not in jsonio.loads((tmp_path / "sim" / "MANIFEST.json").read_text())["files"]
+    assert main(["simulate", "--duration", "0.2", "--controllers", "npid", "--out", "sim",
+                 "--json", "sim/metrics.json"]) == 0           # again: replaced
+    assert main(["simulate", "--duration", "0.2", "--controllers", "npid", "--out", "sim2",
+                 "--json", "reports/new/m.json"]) == 0
+    assert jsonio.loads((tmp_path / "reports" / "new" / "m.json").read_text())["controllers"]["npid"]
+
+
 @pytest.mark.parametrize("args,fragment", [(["--controllers", "pid"], "--controllers"),
                                            (["--duration", "-1"], "--duration"),
                                            (["--voltage-limits", "2"], "--voltage-limits"),
                                            (["--voltage-limits", "2,nan"], "--voltage-limits"),
                                            (["--voltage-limits", "2,-1"], "--voltage-limits"),
-                                           (["--json", "/nonexistent-derive/m.json"], "--json")])
+                                           (["--json", "{tmp}/a-file/m.json"], "--json")])
 def test_simulate_cli_rejects_bad_options_with_exit_2(tmp_path, args, fragment):
+    (tmp_path / "a-file").write_text("")
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
     proc = subprocess.run([sys.executable, "-m", "derive", "simulate", "--out", str(tmp_path / "x"), *args],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr

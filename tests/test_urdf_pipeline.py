@@ -71,9 +71,9 @@ def test_show_and_simulate_a_urdf_arm(two_commands, capsys, tmp_path) -> None:
 
 
 def test_show_and_check_an_arm_whose_urdf_turns_by_an_inexact_angle(tmp_path, capsys) -> None:
-    """A joint origin turned by rpy 0.3 (not a multiple of pi/2: the chain keeps sin(3/10),
-    cos(3/10) exact) is shown with those constants as numbers, and checked: the exact proofs
-    and the observer certificate take them as generators with s^2 + c^2 = 1, |s|, |c| <= 1."""
+    """A joint origin turned by rpy 0.3 (not a multiple of pi/2): the chain holds the nearest
+    rational rotation (derive.model.rigid.rational_rotation: exactly orthogonal, within 4e-18
+    of Rx(0.3)), so no sin/cos of a constant reaches the dynamics; shown and checked."""
     from .test_model_urdf import joint, link, robot, write
     from .test_spatial_dynamics import urdf_arm
 
@@ -81,7 +81,11 @@ def test_show_and_check_an_arm_whose_urdf_turns_by_an_inexact_angle(tmp_path, ca
                  + link("c", 0.5, "0.1 0.02 0", inertia=(1e-3, 0, 0, 1e-3, 0, 1e-3))
                  + joint("j1", "a", "b", axis="0 1 0") + joint("j2", "b", "c", xyz="0.3 0 0", rpy_="0.3 0 0"))
     arm = urdf_arm(write(tmp_path, text), "a", "c", 2, "tilted")
-    assert any(sp.sin(sp.Rational(3, 10)) in x.atoms(sp.sin) for x in arm.chain.joints[1].origin.R)
+    R = sp.Matrix(arm.chain.joints[1].origin.R)
+    assert all(x.is_Rational for x in R) and R.T * R == sp.eye(3) and R.det() == 1
+    exact = sp.Matrix([[1, 0, 0], [0, sp.cos(sp.Rational(3, 10)), -sp.sin(sp.Rational(3, 10))],
+                       [0, sp.sin(sp.Rational(3, 10)), sp.cos(sp.Rational(3, 10))]])
+    assert max(abs(sp.N(x, 40)) for x in R - exact) < 4e-18
     path = tmp_path / "tilted.toml"
     path.write_text(f'''[arm]
 name = "tilted"

@@ -28,6 +28,8 @@ COMMANDS = {
     "fmu": ("derive.cli.fmu", "package a controller form as a co-simulation FMU (FMI 2.0 or 3.0)"),
     "tune": ("derive.cli.tune", "choose the smallest certified observer gain W for a speed box (SDP)"),
     "sweep": ("derive.cli.sweep", "Monte-Carlo sweep of the closed loop over the arm file's [sweep] plants"),
+    "excite": ("derive.cli.excite", "write an excitation trajectory for identification (Fourier series, CSV)"),
+    "identify": ("derive.cli.identify", "identify the arm's parameters from a logged run; write the arm file"),
 }
 
 

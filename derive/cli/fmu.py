@@ -11,8 +11,8 @@ from derive.codegen.kernels import ParamsMode
 
 
 def add_arguments(parser) -> None:
-    """CLI: derive fmu [ARM] [--fmi 2|3] [--form F] [--real R] [--params P] [--sample-time S] [--plant]
-    [--out DIR] [--cc CC]."""
+    """CLI: derive fmu [ARM] [--fmi 2|3] [--form F] [--real R] [--params P] [--sample-time S]
+    [--observer explicit|implicit] [--plant] [--out DIR] [--cc CC]."""
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
@@ -25,6 +25,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--sample-time", type=float, default=None,
                         help="the FMU's default communication step = the controller's sample time [s] "
                              "(default: the arm file's simulation.sample_time)")
+    parser.add_argument("--observer", default="explicit",
+                        help="the observer step, as derive generate --observer: explicit (forward Euler, the "
+                             "default) or implicit (backward Euler: no observer limit on the sample time)")
     parser.add_argument("--out", default="fmu", help="folder the FMU is written to (default: fmu)")
     parser.add_argument("--plant", action="store_true",
                         help="also write <arm>_plant.fmu: the simulation plant of the arm's [simulation] section "
@@ -38,7 +41,7 @@ def run(args) -> int:
     from derive.fmu import check_options, controller_fmu, plant_fmu, write_fmus
     from derive.cli import load_cli_arm
 
-    options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time)
+    options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time, args.observer)
     out = Path(args.out)
     if out.exists() and not out.is_dir():  # before any work: one clear error, nothing written
         from derive.errors import EmitError

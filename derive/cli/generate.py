@@ -11,7 +11,7 @@ from derive.codegen.kernels import OBSERVER_STEPS, ParamsMode
 
 def add_arguments(parser) -> None:
     """CLI: derive generate [ARM] [--out DIR] [--real double|float] [--params baked|runtime]
-    [--observer explicit|implicit]."""
+    [--observer explicit|implicit] [--regressor]."""
     from derive.cli import add_arm_argument
 
     add_arm_argument(parser)
@@ -23,6 +23,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--observer", choices=OBSERVER_STEPS, default="explicit",
                         help="the observer's step: explicit (forward Euler of eq. 21, the default) or implicit "
                              "(backward Euler, (J + dt W) y = ... solved numerically: no W J^-1 sample-time limit)")
+    parser.add_argument("--regressor", action="store_true",
+                        help="also write the identification regressor <arm>_regressor (C, Python, self-test): "
+                             "J theta'' + G = Y pi in the base parameters pi (derive identify)")
 
 
 def run(args) -> int:
@@ -54,7 +57,7 @@ def run(args) -> int:
 
         notes: list[str] = []
         files = generate_files(d, None, args.real, ParamsMode(args.params), notes,  # hash of the bytes load_arm read
-                               sample_time=sentence, stage=stage, observer=args.observer)
+                               sample_time=sentence, stage=stage, observer=args.observer, regressor=args.regressor)
         bar.update()
     report_warnings(d)
     for text in too_slow(d, arm.simulation.sample_time, observer=args.observer):

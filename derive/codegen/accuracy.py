@@ -44,7 +44,7 @@ LEAF, SELECT = -1, -2               # tape-only nodes: an external input, the gl
 
 # op -> kind of rounding of the printed instruction (None: exact); see printing._OPS
 _ROUNDING = {
-    ca.OP_ASSIGN: None, ca.OP_NEG: None, ca.OP_FABS: None, ca.OP_TWICE: None,
+    ca.OP_ASSIGN: None, ca.OP_NEG: None, ca.OP_FABS: None, ca.OP_TWICE: None, ca.OP_FLOOR: None,
     ca.OP_ADD: OP, ca.OP_SUB: OP, ca.OP_MUL: OP, ca.OP_DIV: OP, ca.OP_SQ: OP, ca.OP_INV: OP, ca.OP_SQRT: OP,
     ca.OP_SIN: LIBM, ca.OP_COS: LIBM, ca.OP_TAN: LIBM, ca.OP_EXP: LIBM, ca.OP_LOG: LIBM,
     ca.OP_POW: LIBM, ca.OP_CONSTPOW: LIBM,
@@ -72,7 +72,8 @@ def _forward(op: int, a: np.ndarray, b: np.ndarray | None) -> np.ndarray:
         return {ca.OP_ASSIGN: lambda: a, ca.OP_NEG: lambda: -a, ca.OP_TWICE: lambda: a + a,
                 ca.OP_SQ: lambda: a * a, ca.OP_INV: lambda: 1.0 / a, ca.OP_SQRT: lambda: np.sqrt(a),
                 ca.OP_SIN: lambda: np.sin(a), ca.OP_COS: lambda: np.cos(a), ca.OP_TAN: lambda: np.tan(a),
-                ca.OP_EXP: lambda: np.exp(a), ca.OP_LOG: lambda: np.log(a), ca.OP_FABS: lambda: np.abs(a)}[op]()
+                ca.OP_EXP: lambda: np.exp(a), ca.OP_LOG: lambda: np.log(a), ca.OP_FABS: lambda: np.abs(a),
+                ca.OP_FLOOR: lambda: np.floor(a)}[op]()
 
 
 def _partials(op: int, a: np.ndarray, b: np.ndarray | None, v: np.ndarray) -> tuple:
@@ -92,7 +93,8 @@ def _partials(op: int, a: np.ndarray, b: np.ndarray | None, v: np.ndarray) -> tu
             return b * a ** (b - 1), np.log(a) * v
         return ({ca.OP_ASSIGN: 1.0, ca.OP_NEG: -1.0, ca.OP_TWICE: 2.0, ca.OP_SQ: 2 * a, ca.OP_INV: -v * v,
                  ca.OP_SQRT: 0.5 / v, ca.OP_SIN: np.cos(a), ca.OP_COS: -np.sin(a), ca.OP_TAN: 1 + v * v,
-                 ca.OP_EXP: v, ca.OP_LOG: 1.0 / a, ca.OP_FABS: np.sign(a)}[op],)
+                 ca.OP_EXP: v, ca.OP_LOG: 1.0 / a, ca.OP_FABS: np.sign(a),
+                 ca.OP_FLOOR: 0.0}[op],)   # floor: exact, and constant away from the integers
 
 
 class KernelModel:

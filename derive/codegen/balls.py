@@ -129,6 +129,8 @@ class BallFunction:
             text = f"{args[0]}.{_UNARY[expr.func]}()"
         elif expr.func is sp.Abs:
             text = f"abs({args[0]})"
+        elif expr.func is sp.floor:   # a continuous joint's wrap: a wide ball at an integer, never certified
+            text = f"{args[0]}.floor()"
         else:
             raise DerivationError(f"reference {self.name}: cannot evaluate {expr.func.__name__}")
         name = f"t{len(self._lines)}"

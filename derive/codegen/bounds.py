@@ -122,9 +122,9 @@ class ApiBounds:
         """Bounds on P, D, I (row-major, (K, 3 n^2)) at K angle vectors (K, n)."""
         return np.hstack([b for _, b, _ in self._eval("gains", theta)])
 
-    def dobc_init(self, x) -> np.ndarray:
-        """Bounds on z(0), (K, n)."""
-        return self._eval("dobc_init", x)[0][1]
+    def dobc_init(self, x, dt: float = 0.0) -> np.ndarray:
+        """Bounds on z(0), (K, n) (``dt``: the sample time of an implicit build's dobc_init)."""
+        return self._eval("dobc_init", x, dt=dt)[0][1]
 
     def mom_init(self, x) -> np.ndarray:
         """Bounds on the momentum observer's m(0) = J theta', (K, n)."""

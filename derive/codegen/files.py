@@ -11,9 +11,11 @@ from importlib import metadata
 from derive import jsonio
 from derive.codegen.kernels import ParamsMode
 from derive.codegen.plant import plant_c_files, plant_view
+from derive.codegen.regressor import base_parameter_manifest, regressor_files
 from derive.control.pipeline import Derivation
 from derive.codegen.render import render
 from derive.codegen.views import ArmView, arm_view, kernel_functions, selftest_view
+from derive.identify.regressor import derive_regressor
 
 REALS = ("double", "float")
 PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # exact versions in pyproject.toml: output depends on them
@@ -33,9 +35,10 @@ def library_files(d: Derivation, real: str, mode: ParamsMode, v: ArmView | None 
 
 
 def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None = None,
-            v: ArmView | None = None) -> dict[str, str]:
+            v: ArmView | None = None, regressor: bool = False) -> dict[str, str]:
     """The C library, its self-test and CMakeLists.txt, under ``c/``; sentences
-    for the user (a real type too coarse for the arm) are appended to ``notes``."""
+    for the user (a real type too coarse for the arm) are appended to ``notes``;
+    ``regressor``: CMakeLists.txt builds <arm>_regressor.c too (derive.codegen.regressor)."""
     v = arm_view(d, real, mode) if v is None else v
     t = selftest_view(d, v)
     if notes is not None:
@@ -44,7 +47,8 @@ def c_files(d: Derivation, real: str, mode: ParamsMode, notes: list[str] | None 
     return {
         **library_files(d, real, mode, v),
         f"c/{a}_selftest.c": render("c/selftest.c.jinja", v=v, t=t),
-        "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v, version=metadata.version("derive")),
+        "c/CMakeLists.txt": render("c/CMakeLists.txt.jinja", v=v, version=metadata.version("derive"),
+                                   regressor=regressor),
         **plant_c_files(d, v, mode),
     }
 
@@ -74,7 +78,7 @@ GENERATE_STAGES = ("kernels", "C and self-test vectors", "Python")
 def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "double",
                    mode: ParamsMode = ParamsMode.BAKED, notes: list[str] | None = None,
                    sample_time: str | None = None, stage: Callable[[str], None] | None = None,
-                   observer: str = "explicit") -> dict[str, str]:
+                   observer: str = "explicit", regressor: bool = False) -> dict[str, str]:
     """Every generated file of one arm, with a manifest (no timestamps, no paths).
 
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
@@ -83,28 +87,36 @@ def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "d
     sentence of derive.control.sampling.summary, stated in the headers (derive generate passes it).
     ``stage(name)``, when given, is called as each of GENERATE_STAGES begins (a progress bar).
     ``observer``: the observer step (derive.codegen.kernels.OBSERVER_STEPS); the manifest's
-    options name it when it is not the default."""
+    options name it when it is not the default. ``regressor``: also the identification regressor
+    (derive.codegen.regressor; ``derive generate --regressor``), its base parameters in the manifest."""
     stage = stage or (lambda name: None)
     stage("kernels")
     functions = kernel_functions(d, mode, observer)  # each kernel built once, printed for C and Python
     v = arm_view(d, real, mode, functions, sample_time, observer)
     py = v if real == "double" else arm_view(d, "double", mode, functions, sample_time, observer)
     stage("C and self-test vectors")
-    c = c_files(d, real, mode, notes, v)
+    c = c_files(d, real, mode, notes, v, regressor)
     stage("Python")
     files = {**c, **python_files(d, mode, py)}
     options: dict[str, object] = {"real": real, "params": mode.value}
     if observer != "explicit":
         options["observer"] = observer
-    files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, options)
+    extra = {}
+    if regressor:
+        reg = derive_regressor(d.dynamics.chain)
+        files.update(regressor_files(d, v, reg))
+        options["regressor"] = True
+        extra["base_parameters"] = base_parameter_manifest(reg)
+    files["MANIFEST.json"] = manifest_text(d, files, arm_bytes, options, extra=extra)
     return files
 
 
 def manifest_text(d: Derivation, files: dict[str, str | bytes], arm_bytes: bytes | None,
-                  options: dict[str, object], command: str = "derive generate") -> str:
+                  options: dict[str, object], command: str = "derive generate", extra: dict | None = None) -> str:
     """MANIFEST.json of generated ``files``: the arm file's name and sha256 (of
     ``arm_bytes`` when given, else of the bytes load_arm validated), the options,
-    the pinned tool versions and each file's sha256; no timestamps, no paths."""
+    the pinned tool versions and each file's sha256; no timestamps, no paths. ``extra``:
+    more entries, before ``files`` (the regressor's base parameters)."""
     manifest = {
         "_note": f"generated by derive; do not edit (regenerate with: {command})",
         "arm": d.arm.name,
@@ -114,6 +126,7 @@ def manifest_text(d: Derivation, files: dict[str, str | bytes], arm_bytes: bytes
         "observer": observer_manifest(d),
         "versions": {"derive": metadata.version("derive"),
                      **{name: metadata.version(name) for name in PINNED}},
+        **(extra or {}),
         "files": {path: hashlib.sha256(text.encode() if isinstance(text, str) else text).hexdigest()
                   for path, text in sorted(files.items())},
     }

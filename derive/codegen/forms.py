@@ -9,7 +9,9 @@ available everywhere by one entry here.
 The C API of a form ``f`` (prefix ``<arm>_``, parameters first in runtime builds):
 
 * stateless (``state is None``): ``int f_step(const input *in, real u[N], mask *clipped)``;
-* with state: ``int f_init(f_state *s, const input *in)`` and
+* with state: ``int f_init(f_state *s, const input *in)`` (``f_init(f_state *s, const input *in,
+  real dt)`` for a form whose init needs the sample time in ``--observer implicit`` builds:
+  :func:`init_takes_dt`) and
   ``int f_step(f_state *s, const input *in, real dt, real u[N], mask *clipped)``;
   ``clipped`` (NULL allowed) receives which joints' u the voltage or torque limits clipped
   (the Python module's ``f_step`` returns ``(code, u, clipped)``);
@@ -41,6 +43,7 @@ class Form:
     state: FormState | None
     estimate: bool    # has <arm>_<name>_estimate (dhat, eq. 22)
     estimate_law: str = ""   # what that estimate is, plain ASCII (forms with an estimate)
+    init_dt_implicit: bool = False   # f_init takes dt in --observer implicit builds (dhat(0) with W_dt)
 
 
 FORMS: dict[str, Form] = {f.name: f for f in (
@@ -49,7 +52,7 @@ FORMS: dict[str, Form] = {f.name: f for f in (
          estimate=False),
     Form("dobc", "disturbance-observer-based controller", "u = u* - dhat, dhat = B^-1 (z + W theta')",
          "eq. 21-27", FormState("dobc_state", "z", "observer state z (eq. 21)"), estimate=True,
-         estimate_law="dhat = B^-1 (z + W theta') (eq. 22)"),
+         estimate_law="dhat = B^-1 (z + W theta') (eq. 22)", init_dt_implicit=True),
     Form("mpc", "nonlinear predictive controller", "u = u* (no disturbance estimate)", "eq. 15",
          None, estimate=False),
     Form("mom", "generalized-momentum observer with the predictive law",
@@ -63,3 +66,9 @@ DEFAULT_FORM = "npid"
 def form(name: str) -> Form:
     """The registered form ``name``; KeyError for an unknown one (callers word the message)."""
     return FORMS[name]
+
+
+def init_takes_dt(f: Form, observer: str) -> bool:
+    """Whether ``<arm>_<f>_init`` takes the sample time in a build with the observer step
+    ``observer`` (the implicit DOBC: its initial estimate uses W_dt = W (J + dt W)^-1 J)."""
+    return f.init_dt_implicit and observer == "implicit"

@@ -99,7 +99,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
     npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
     observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
-    from the derived dhat(0); dhat(theta', z) -> the estimate dhat (eq. 22);
+    from the derived dhat(0) (implicit: dobc_init(x, dt) -> z(0), u0); dhat(theta', z) -> the estimate dhat (eq. 22);
     x = (theta, theta', yd, yd', yd''), p = parameters
     (runtime). The discretisation is part of the maths: forward Euler,
     int_next = int_e + dt e and z_next = z + dt z'; the glue only chooses
@@ -109,12 +109,15 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     observer kernel takes the backward-Euler step of eq. (21) over the interval
     that just ended, (J + dt W) y = G - B u - W theta' - z with the new
     measurement and the voltage u held over the interval, z_next = z + dt W y,
-    and the glue applies the DOBC law to z_next; dobc_init also returns u0 =
-    B^-1 (G - W theta' - z0), the held voltage that leaves z0 in place at the
-    first sample. The NPID law matched to it is u = u* + B^-1 W x with
-    (J + dt W) x = J xi, xi = C^-1 (e' + K2 e + K1 int e): the PID form with W
-    replaced by W_dt = W (J + dt W)^-1 J (derive.control.npid), solved
-    numerically like every J system. Raises ValueError for another ``observer``.
+    and the glue applies the DOBC law to z_next. The NPID law matched to it is
+    u = u* + B^-1 W x with (J + dt W) x = J xi, xi = C^-1 (e' + K2 e + K1 int e):
+    the PID form with W replaced by W_dt = W (J + dt W)^-1 J (derive.control.npid),
+    solved numerically like every J system. Its initial estimate is the same
+    substitution in the derived dhat(0): dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)),
+    so dobc_init(x, dt) takes the sample time, returns z0 = B dhat(0) - W theta'
+    and u0 = B^-1 (G - W theta' - z0), the held voltage that leaves z0 in place at
+    the first sample: both forms give the same u at t = 0. Raises ValueError for
+    another ``observer``.
     """
     if observer not in OBSERVER_STEPS:
         raise ValueError(f"kernel_specs: expected an observer step of {OBSERVER_STEPS}, got {observer!r}")
@@ -150,14 +153,27 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         npid_u = law(d.mpc.u_star_rnea) + Binv * value(W) * sp.Matrix(xs)
         npid_solves = (LinearSolve(xs, A, law(J * value(npid.xi))),)
         npid_doc = "u = u* + B^-1 W x, (J + dt W) x = J xi: eq. 34 with W_dt = W (J + dt W)^-1 J"
-        z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),
-                      Port("u0", _flat(Binv * value(d.dynamics.G) - dhat0),
+        # dhat(0) of the sampled form: -B^-1 W_dt C^-1 (e'(0) + K2 e(0)) = -B^-1 W x0 with
+        # (J + dt W) x0 = J xi(0), xi(0) = C^-1 (e'(0) + K2 e(0)) (derive.control.npid): the NPID
+        # form's u at the first sample, so both forms give the same u from t = 0
+        x0 = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
+        xi0 = law(J * value(npid.xi).xreplace({v: 0 for v in s.int_e}))
+        init_solves = (LinearSolve(x0, A, xi0),)
+        Wx0 = value(W) * sp.Matrix(x0)
+        z0_outputs = (Port("z0", _flat(-Wx0 - value(W) * sp.Matrix(s.dtheta)),
+                           "z(0) = B dhat(0) - W theta'(0), dhat(0) = -B^-1 W x0, (J + dt W) x0 = J xi(0)"),
+                      Port("u0", _flat(Binv * (value(d.dynamics.G) + Wx0)),
                            "u0 = B^-1 (G - W theta' - z0): the first backward-Euler step leaves z0"))
+        init_inputs = (*x[:4], dt, *params)
+        init_doc = ("Observer state giving the sampled initial estimate dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)), "
+                    "W_dt = W (J + dt W)^-1 J (eq. 30 for the backward-Euler step, not 31)")
         observer_doc = ("Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
                         "(J + dt W) y = G - B u - W theta' - z solved numerically")
     else:
         npid_u, npid_solves, npid_doc = law(npid.u_npid_rnea), (), "u = P e + D e' + I int e + N, eq. 34"
         z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),)
+        init_solves, init_inputs = (), (*x[:4], *params)
+        init_doc = "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"
         observer_doc = "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically"
     return (
         KernelSpec("gains", (theta, *params), (
@@ -179,8 +195,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
                  "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21" if implicit
                  else "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
             observer_doc, (solve,)),
-        KernelSpec("dobc_init", (*x[:4], *params), z0_outputs,
-                   "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"),
+        KernelSpec("dobc_init", init_inputs, z0_outputs, init_doc, init_solves),
         KernelSpec("dhat", (dtheta, z, *params), (
             Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
             "Disturbance estimate of the observer state (eq. 22)"),

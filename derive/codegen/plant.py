@@ -42,19 +42,33 @@ def _flat(m: sp.Matrix) -> tuple:
     return tuple(m[i, j] for i in range(m.rows) for j in range(m.cols))
 
 
+def quantities(d: Derivation) -> dict[str, str]:
+    """QUANTITIES' docs with B's unit and the input's as the actuation has them: N m/V for a DC
+    motor, N m/(N m) (the gear ratio) in torque mode (derive.model.actuators.input_unit)."""
+    from derive.model.actuators import units_text
+
+    docs = {name: doc for name, _, doc in QUANTITIES}
+    u = units_text(d.arm.input_units)
+    if u != "V":
+        docs["input_matrix"] = f"input matrix B, n x n (eq. 12) [N m per unit of u; u in {u}]"
+    return docs
+
+
 def plant_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
     """The plant's kernels (see the module docstring), in the order of QUANTITIES."""
+    from derive.model.actuators import input_word, units_text
     s, dyn, n = d.dynamics.sym, d.dynamics, d.n
     runtime = mode is ParamsMode.RUNTIME
     value = (lambda m: m) if runtime else d.numeric
     params = (Port("p", tuple(sym for sym, _ in d.values), "arm parameters and gains"),) if runtime else ()
     theta = Port("theta", s.theta, "joint angles [rad]")
     dtheta = Port("dtheta", s.dtheta, "joint velocities [rad/s]")
-    u = Port("u", s.u, "motor voltages [V]")
+    unit, word = units_text(d.arm.input_units), input_word(d.arm.input_units)
+    u = Port("u", s.u, f"motor {word}s [{unit}]")
     dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
     y = tuple(sp.Symbol(f"ddtheta{i + 1}", real=True) for i in range(n))
     rhs = value(dyn.B) * (sp.Matrix(s.u) + sp.Matrix(dist)) - value(dyn.G)
-    docs = {name: doc for name, _, doc in QUANTITIES}
+    docs = quantities(d)
     return (
         KernelSpec("mass_matrix", (theta, *params), (Port("J", _flat(value(dyn.J)), docs["mass_matrix"]),),
                    "Inertia matrix J(theta) (eq. 12, a6)"),
@@ -64,7 +78,7 @@ def plant_specs(d: Derivation, mode: ParamsMode) -> tuple[KernelSpec, ...]:
                    "Gravity torques g(theta)"),
         KernelSpec("input_matrix", params, (Port("B", _flat(value(dyn.B)), docs["input_matrix"]),),
                    "Input matrix B = diag(gear Kt / R) (eq. 12)"),
-        KernelSpec("forward_dynamics", (theta, dtheta, u, Port("d", dist, "input disturbance [V] (eq. 12)"),
+        KernelSpec("forward_dynamics", (theta, dtheta, u, Port("d", dist, f"input disturbance [{unit}] (eq. 12)"),
                                         *params),
                    (Port("ddtheta", y, docs["forward_dynamics"]),),
                    "Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12)",
@@ -102,7 +116,7 @@ class PlantView:
 def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
     """Kernels and exported functions of the plant for one real type and mode."""
     specs = plant_specs(d, mode)
-    docs = {name: doc for name, _, doc in QUANTITIES}
+    docs = quantities(d)
     ctype = f"{d.arm.name}_real"
 
     def function(k: KernelSpec) -> PlantFunction:

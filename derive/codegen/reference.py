@@ -146,17 +146,43 @@ class Reference:
         n = self.n
         return self._run(self._dhat, x[n:2 * n], z)
 
-    def dobc_init(self, x) -> list[arb]:
-        return self._run(self._z0, x[: 4 * self.n])
+    def dobc_init(self, x, dt=None) -> list[arb]:
+        """z(0) = B dhat(0) - W theta'(0) (eq. 22) with the derived dhat(0) (derive.control.npid);
+        for the implicit step dhat(0) = -B^-1 W x0, (J + dt W) x0 = J xi(0): W_dt in place of W."""
+        n = self.n
+        if not self.implicit:
+            return self._run(self._z0, x[: 4 * n])
+        with working_precision(self.prec):
+            Wx0 = self._W_x0(x, dt)
+            return [-Wx0[i] - sum((ball(self._W[i, j]) * x[n + j] for j in range(n)), arb(0)) for i in range(n)]
 
-    def dobc_held(self, x) -> list[arb]:
-        """The implicit step's initial held voltage B^-1 (G - W theta' - z0) = B^-1 G - dhat(0)."""
+    def _W_x0(self, x, dt) -> list[arb]:
+        """W x0 with (J + dt W) x0 = J xi(0), xi(0) = C^-1 (e' + K2 e) (int e = 0); the precision set."""
+        n = self.n
+        xi, J = self._xi(*x, *([0] * n)), self._J(*x[:n])
+        Jxi = [sum((J[i * n + j] * xi[j] for j in range(n)), arb(0)) for i in range(n)]
+        x0 = self._solve_implicit(J, Jxi, dt)
+        return [sum((ball(self._W[i, j]) * x0[j] for j in range(n)), arb(0)) for i in range(n)]
+
+    def initial_estimate(self, x, dt=None) -> list[arb]:
+        """dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)) at input x (derive.control.npid; e, e' from x as the
+        controller takes them, wrapped for continuous joints); with ``dt``, the implicit step's W_dt =
+        W (J + dt W)^-1 J in place of W (J at x's theta)."""
         n = self.n
         with working_precision(self.prec):
-            z0, bg = self._z0(*x[: 4 * n]), self._Binv_G(*x[: 2 * n])
-            binv = [ball(1 / self._d.B[i, i]) for i in range(n)]
-            return [bg[i] - binv[i] * (z0[i] + sum((ball(self._W[i, j]) * x[n + j] for j in range(n)), arb(0)))
-                    for i in range(n)]
+            if dt is None:
+                xi = self._xi(*x, *([0] * n))
+                Wxi = [sum((ball(self._W[i, j]) * xi[j] for j in range(n)), arb(0)) for i in range(n)]
+            else:
+                Wxi = self._W_x0(x, dt)
+            return [-ball(1 / self._d.B[i, i]) * Wxi[i] for i in range(n)]
+
+    def dobc_held(self, x, dt) -> list[arb]:
+        """The implicit step's initial held voltage B^-1 (G - W theta' - z0) = B^-1 (G + W x0)."""
+        n = self.n
+        with working_precision(self.prec):
+            bg, Wx0 = self._Binv_G(*x[: 2 * n]), self._W_x0(x, dt)
+            return [bg[i] + ball(1 / self._d.B[i, i]) * Wx0[i] for i in range(n)]
 
     def saturate(self, u) -> tuple[list, list[bool]]:
         out, hit = [], []

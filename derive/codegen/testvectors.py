@@ -140,7 +140,7 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
             dobc = ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit else ref.dobc_step(z, x,
                                                                                                    SEQUENCE_DT)
             return (ref.gains(x[:n]), ref.mpc_step(x), *ref.npid_step(int_e, x, SEQUENCE_DT), *dobc,
-                    ref.dobc_init(x), *((ref.dobc_held(x),) if ref.implicit else ()))
+                    ref.dobc_init(x, SEQUENCE_DT), *((ref.dobc_held(x, SEQUENCE_DT),) if ref.implicit else ()))
         got = list(map(_floats, _proved(compute, ref)))
         u0 = got.pop() if ref.implicit else ()
         mom = list(map(_floats, _proved(lambda: (ref.mom_init(x), *ref.mom_step(m, x, SEQUENCE_DT),
@@ -165,8 +165,8 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
 
     def compute():
         int_e = [0] * n
-        z = [v.mid() for v in ref.dobc_init(sequence_input(0, n))]
-        held = [v.mid() for v in ref.dobc_held(sequence_input(0, n))] if ref.implicit else None
+        z = [v.mid() for v in ref.dobc_init(sequence_input(0, n), SEQUENCE_DT)]
+        held = [v.mid() for v in ref.dobc_held(sequence_input(0, n), SEQUENCE_DT)] if ref.implicit else None
         m = [v.mid() for v in ref.mom_init(sequence_input(0, n))]
         nu = du = mu = None
         states = np.zeros((3, steps, n))
@@ -229,7 +229,7 @@ def case_tolerances(bounds: ApiBounds, cs: Sequence[Case], real: str) -> tuple[d
     m = np.array([c.m for c in cs])
     mom = bounds.mom_step(m, x, SEQUENCE_DT)
     rows = {"gains": bounds.gains(x[:, :n]), "mpc": bounds.mpc_step(x), "npid_u": npid.u_bound,
-            "npid_next": npid.next_bound, "z0": bounds.dobc_init(x), "mom0": bounds.mom_init(x),
+            "npid_next": npid.next_bound, "z0": bounds.dobc_init(x, SEQUENCE_DT), "mom0": bounds.mom_init(x),
             "mom_u": mom.u_bound, "mom_next": mom.next_bound, "mom_dhat": bounds.mom_estimate(m, x)}
     if bounds.implicit:
         ops = bounds.operations("observer") + bounds.operations("dobc")

@@ -17,7 +17,8 @@ from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
 from derive.control.pipeline import Derivation
 from derive.control.ranges import check_ranges
 from derive.errors import Problem, SpecError
-from derive.model.spec import observer_parameters
+from derive.model.actuators import input_word, units_text
+from derive.model.spec import gain_units_text, observer_parameters
 from derive.codegen.printing import c_literal, print_function, py_literal
 
 def comment_text(text: str) -> str:
@@ -75,6 +76,9 @@ class ArmView:
     observer_notes: tuple[str, ...]             # comment lines: W, its structure, how it was chosen
     sample_notes: tuple[str, ...] = ()          # the largest sample time of each form (derive generate)
     implicit: bool = False                      # --observer implicit: the backward-Euler observer step
+    wrap_notes: tuple[str, ...] = ()            # comment lines: the outputs whose error is wrapped (continuous joints)
+    u_word: str = "voltage"                     # what u is: voltage, torque, or input (mixed actuation)
+    u_unit: str = "V"                           # its unit: V, N m, or one per motor
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -126,7 +130,8 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
     if syn is not None:   # w = "auto": the synthesised gain (derive.control.synthesis)
         chen = syn.structure == "chen"
         docs.update({str(p.symbol): p for p in observer_parameters(
-            [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'")})
+            [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
+            arm.prismatic)})
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(
@@ -143,14 +148,29 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),
-        implicit=observer == "implicit")
+        implicit=observer == "implicit", u_word=input_word(arm.input_units), u_unit=units_text(arm.input_units),
+        wrap_notes=tuple(textwrap.wrap(comment_text(wrap_note(d)), 80)) if d.wrapped else ())
+
+
+def wrap_note(d: Derivation) -> str:
+    """The sentence of the generated headers on the continuous joints' wrapped error (derive.control.wrap)."""
+    joints = d.dynamics.chain.joints
+    cont = [f"{j + 1} ({joints[j].name})" for j in range(d.n) if joints[j].type.value == "continuous"]
+    outs = ", ".join(str(i + 1) for i in d.wrapped)
+    return (f"Continuous joint{'s' if len(cont) > 1 else ''} {', '.join(cont)}: the tracking error e = yd - C theta of output(s) {outs} is "
+            "wrapped to (-pi, pi], e = x + 2 pi floor((pi - x) / (2 pi)) with x = yd - C theta, in every step "
+            "(u*, the initial estimate, the integral of e), so a continuous joint reported at theta or at "
+            "theta - 2 pi (in (-pi, pi], say, as encoders do) gives the same command; e' = yd' - C theta' is not "
+            "wrapped, and the arm is driven the short way round to yd.")
 
 
 def observer_notes(d: Derivation) -> tuple[str, ...]:
-    """Lines for the generated headers: W [1/s], its structure and, for w = "auto", the box,
-    rate and certificate it was synthesised for (derive.control.synthesis)."""
+    """Lines for the generated headers: W [N m s/rad: p = W theta' is a joint torque, eq. 22], its
+    structure and, for w = "auto", the box, rate and certificate it was synthesised for
+    (derive.control.synthesis)."""
     rows = "[" + ", ".join("[" + ", ".join(f"{float(x):.6g}" for x in d.W.row(i)) + "]" for i in range(d.n)) + "]"
-    lines = [f"Observer gain W = {rows} 1/s ({d.observer.structure} structure, eq. 23-25)."]
+    lines = [f"Observer gain W = {rows} {gain_units_text(d.arm.prismatic)} ({d.observer.structure} structure, "
+             "eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s)."]
     syn = d.synthesis
     if syn is not None:
         box = ", ".join(f"{x:g}" for x in syn.box)

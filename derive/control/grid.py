@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from derive.control.inertia import joint_coordinates
-from derive.dynamics.program import lambdify
+from derive.dynamics.sx import batched
 from derive.errors import Problem, SpecError
 
 SINGULAR = 1e-9        # lambda_min(J) / lambda_max(J) below this: J is singular there
@@ -164,12 +164,11 @@ def mass_function(d):
 
 
 def _mass(d):
-    f = lambdify(list(d.theta), list(d.J))
+    f = batched(list(d.theta), list(d.J))
     n = d.n
 
     def call(Q: np.ndarray) -> np.ndarray:
-        P = Q.shape[0]
-        return np.stack([np.broadcast_to(np.asarray(v, dtype=float), (P,)) for v in f(*Q.T)], axis=-1).reshape(P, n, n)
+        return f(Q).reshape(Q.shape[0], n, n)
 
     return call
 

@@ -71,6 +71,7 @@ def derive_mpc(dyn: Dynamics, t1: Fraction, t2: Fraction, C: tuple[tuple[Fractio
     e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
     Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])
     u_star = Binv * dyn.J * Cout.inv() * (K1 * e + K2 * de + ddyd) + Binv * dyn.G
-    u_star_rnea = Binv * dyn.inverse_dynamics(Cout.inv() * (K1 * e + K2 * de + ddyd))
+    tau = dyn.inverse_dynamics(Cout.inv() * (K1 * e + K2 * de + ddyd))
+    u_star_rnea = sp.Matrix([Binv[i, i] * tau[i] for i in range(n)])   # B is diagonal (eq. 12)
     return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, u_star_rnea=u_star_rnea,
                values=((T1, _rational(t1)), (T2, _rational(t2))))

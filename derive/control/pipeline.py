@@ -19,8 +19,10 @@ from derive.control.momentum import Momentum, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.grid import check_definite
+from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
+from derive.control.wrap import wrap, wrapped_outputs
 from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
 
@@ -73,10 +75,20 @@ class Derivation:
     synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
     momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
     u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
+    wrapped: tuple[int, ...] = ()        # outputs whose error is wrapped to (-pi, pi] (derive.control.wrap)
+    formal: "Derivation | None" = None  # the same over placeholders J, G, g, C (derive.control.opaque)
 
     @property
     def n(self) -> int:
         return len(self.theta)
+
+    @property
+    def formal_view(self) -> "Derivation | None":
+        """The Derivation over placeholders this one was inlined from (derive.control.opaque),
+        or None: a copy made with dataclasses.replace (a field changed) has none, since its
+        matrices are no longer the inlining of the formal ones."""
+        mark = self.__dict__.get("_formal_of")
+        return mark if mark is not None and mark is self.formal else None
 
     @property
     def k_formulas(self) -> tuple[sp.Expr, sp.Expr]:
@@ -100,10 +112,13 @@ class Derivation:
 
     @property
     def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
-        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each)."""
+        """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each);
+        the outputs of ``wrapped`` (those a continuous joint moves) have e wrapped to (-pi, pi]
+        (derive.control.wrap), so theta and theta - 2 pi give the same e."""
         s = self.dynamics.sym
-        return (sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta),
-                sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta))
+        e = sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta)
+        e = sp.Matrix([wrap(e[i]) if i in self.wrapped else e[i] for i in range(e.rows)])
+        return e, sp.Matrix(s.dyd) - self.C * sp.Matrix(s.dtheta)
 
     def measured(self, expr):
         """``expr`` with e, e' and e(0), e'(0) written in the measurements (eq. 20);
@@ -119,17 +134,23 @@ def derive(arm: Arm) -> Derivation:
     singular at a configuration within the joint limits (``derive.control.grid.check_definite``)."""
     dyn = derive_dynamics(arm)
     ctl = arm.controller
-    mpc = derive_mpc(dyn, ctl.T1, ctl.T2, ctl.C)
+    # the control stages are algebra over J, G, g, C: built over placeholders (milliseconds),
+    # then the dynamics put in (derive.control.opaque); the placeholder forms are what
+    # derive check decides the control obligations on
+    odyn = OpaqueDynamics(dyn)
+    mpc_f = derive_mpc(odyn, ctl.T1, ctl.T2, ctl.C)
+    wrapped = wrapped_outputs(mpc_f.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
         synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
-        obs = derive_observer(dyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
-                              W_values=None if chen else synthesis.W)
+        obs_f = derive_observer(odyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
+                                W_values=None if chen else synthesis.W)
     else:
-        obs = derive_observer(dyn, w_values=ctl.w, W_values=ctl.W)
-    npid = derive_npid(dyn, mpc, obs)
-    mom = derive_momentum(dyn)
+        obs_f = derive_observer(odyn, w_values=ctl.w, W_values=ctl.W)
+    npid_f = derive_npid(odyn, mpc_f, obs_f)
+    mom_f = derive_momentum(odyn)
+    mpc, obs, npid, mom = (odyn.inline_stage(x) for x in (mpc_f, obs_f, npid_f, mom_f))
     mom_values = tuple((p.symbol, p.rational) for p in momentum_parameters(ctl))
     values = dyn.values + mpc.values + obs.values + mom_values
     rep = dict(values)
@@ -154,7 +175,25 @@ def derive(arm: Arm) -> Derivation:
         D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
-        u_mom=num(mpc.u_star - mom.dhat))
+        u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped,
+        formal=_formal(arm, odyn, mpc_f, obs_f, npid_f, mom_f, values, wrapped))
+    # the pair is marked: only this Derivation, not a copy with fields replaced, is the
+    # inlining of its formal one (derive.proofs.project.formal_first relies on it)
+    object.__setattr__(d, "_formal_of", d.formal)
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
     check_definite(d)          # J invertible within the joint limits (derive.control.grid), before any output
     return d
+
+
+def _formal(arm: Arm, odyn: OpaqueDynamics, mpc: Mpc, obs: Observer, npid: Npid, mom: Momentum,
+            values: tuple, wrapped: tuple[int, ...]) -> "Derivation":
+    """The Derivation over placeholders (derive.control.opaque): J, G, g, C are symbol
+    matrices, every law the same algebra over them, the arm's values put in."""
+    num = Substitution(dict(values), keep_sums=True)
+    return Derivation(
+        arm=arm, dynamics=odyn, mpc=mpc, observer=obs, npid=npid, values=values, theta=odyn.sym.theta,
+        dtheta=odyn.sym.dtheta, J=odyn.J, G=odyn.G, B=num(odyn.B), C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2),
+        W=num(obs.W), L=num(obs.L), P=num(npid.P), D=num(npid.D), I=num(npid.I), N=num(npid.N),
+        dhat0=num(npid.dhat0), u_star=num(mpc.u_star), u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid),
+        dhat=num(obs.dhat), lumped=None, speed_bound=None, warnings=(), momentum=mom,
+        u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped)

@@ -63,7 +63,7 @@ import numpy as np
 import sympy as sp
 
 from derive.control.grid import Grid, grid, mass_function
-from derive.dynamics.program import lambdify
+from derive.dynamics.sx import batched
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
@@ -104,14 +104,8 @@ def _jac(f, X: np.ndarray, h: float = 1e-6) -> np.ndarray:
 
 def _batched(args, exprs):
     """A numpy function of the P x len(args) array of arguments, one row per point: P x len(exprs)
-    (constant entries broadcast; each shared subexpression computed once, derive.dynamics.program)."""
-    f = lambdify(args, list(exprs))
-
-    def call(X: np.ndarray) -> np.ndarray:
-        P = X.shape[0]
-        return np.stack([np.broadcast_to(np.asarray(v, dtype=float), (P,)) for v in f(*X.T)], axis=-1)
-
-    return call
+    (CasADi, each shared subexpression computed once: derive.dynamics.sx.batched)."""
+    return batched(list(args), list(exprs))
 
 
 class SampledLoop:

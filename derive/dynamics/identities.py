@@ -83,82 +83,11 @@ def fourier_form(expr: sp.Expr, angles: Sequence[sp.Symbol]) -> sp.Expr:
     sin/cos of integer combinations of ``angles``. The result is the sum of
     m(x) (a cos(k.theta) + b sin(k.theta)) over distinct monomials m of the other
     symbols and distinct k (first non-zero k_i positive): products of sines and
-    cosines become sines and cosines of sums, like ``fu.TR8`` but in sparse
-    polynomial arithmetic over Q(i) with exp(i theta_j) as variables, so shared
-    subexpressions of the recursive dynamics are expanded once (a 5-link bias
-    vector in a tenth of a second where TR8 takes half a minute). Display only:
-    nothing is simplified beyond this normal form. Raises ValueError when
-    ``expr`` is not of that kind (an angle outside sin/cos, a division by a
-    symbol, another function).
+    cosines become sines and cosines of sums, like ``fu.TR8``, computed exactly in
+    FLINT (:func:`derive.dynamics.fourier.fourier_series`). Display only: nothing
+    is simplified beyond this normal form. Raises ValueError when ``expr`` is not
+    of that kind (an angle outside sin/cos, a division by a symbol, another function).
     """
-    from sympy.polys.domains import QQ_I
-    from sympy.polys.rings import ring
+    from derive.dynamics.fourier import fourier_series
 
-    expr = sp.sympify(expr)
-    angles = tuple(angles)
-    others = sorted(expr.free_symbols - set(angles), key=sp.default_sort_key)
-    n = len(angles)
-    names = [f"x{i}" for i in range(n)] + [f"y{i}" for i in range(n)] + [f"v{i}" for i in range(len(others))]
-    R, *gens = ring(names, QQ_I)
-    xs, ys, vs = gens[:n], gens[n:2 * n], dict(zip(others, gens[2 * n:]))
-    index = {a: i for i, a in enumerate(angles)}
-    half, half_i = QQ_I(sp.Rational(1, 2), 0), QQ_I(0, sp.Rational(-1, 2))   # 1/2, 1/(2i)
-    memo: dict[sp.Expr, object] = {}
-
-    def harmonic(arg: sp.Expr) -> tuple[object, object]:
-        """exp(i arg) and exp(-i arg) for arg an integer combination of the angles."""
-        coeffs = sp.Poly(arg, *angles).as_dict() if arg.free_symbols <= set(angles) else None
-        if not coeffs or any(sum(m) != 1 or not c.is_Integer for m, c in coeffs.items()):
-            raise ValueError(f"sin/cos of {arg}: expected an integer combination of the angles")
-        plus, minus = R.one, R.one
-        for m, c in coeffs.items():
-            i = m.index(1)
-            up, down = (xs[i], ys[i]) if c > 0 else (ys[i], xs[i])
-            plus, minus = plus * up ** abs(int(c)), minus * down ** abs(int(c))
-        return plus, minus
-
-    def conv(e: sp.Expr) -> object:
-        if e in memo:
-            return memo[e]
-        if e.is_Rational:
-            out = R(QQ_I(e, 0))
-        elif e.is_Symbol:
-            if e in index:
-                raise ValueError(f"{e} appears outside sin/cos")
-            out = vs[e]
-        elif e.is_Add:
-            out = R.zero
-            for a in e.args:
-                out += conv(a)
-        elif e.is_Mul:
-            out = R.one
-            for a in e.args:
-                out *= conv(a)
-        elif e.is_Pow and e.exp.is_Integer and (e.exp >= 0 or e.base.is_Rational):
-            out = conv(e.base) ** int(e.exp) if e.exp >= 0 else R(QQ_I(e, 0))
-        elif isinstance(e, (sp.sin, sp.cos)):
-            plus, minus = harmonic(e.args[0])
-            out = (plus + minus) * half if isinstance(e, sp.cos) else (plus - minus) * half_i
-        else:
-            raise ValueError(f"{e}: expected a polynomial in sin/cos of the angles")
-        memo[e] = out
-        return out
-
-    series: dict[tuple[tuple[int, ...], tuple[int, ...]], object] = {}
-    for monom, c in conv(expr).terms():
-        key = (tuple(a - b for a, b in zip(monom[:n], monom[n:2 * n])), monom[2 * n:])
-        series[key] = series.get(key, QQ_I.zero) + c
-    total = []
-    for (k, rest), c in series.items():
-        first = next((x for x in k if x), 0)
-        if first < 0:
-            continue
-        m = sp.Mul(*(s ** p for s, p in zip(others, rest)))
-        if first == 0:
-            total.append(m * QQ_I.to_sympy(c))
-            continue
-        c2 = series.get((tuple(-x for x in k), rest), QQ_I.zero)
-        a, b = QQ_I.to_sympy(c + c2), QQ_I.to_sympy((c - c2) * QQ_I(0, 1))
-        arg = sp.Add(*(x * t for x, t in zip(k, angles)))
-        total.append(m * (a * sp.cos(arg) + b * sp.sin(arg)))
-    return sp.expand(sp.Add(*total))
+    return fourier_series([sp.sympify(expr)], angles)[0].to_expr()

@@ -16,7 +16,7 @@ from derive.dynamics.dag import Memo
 from derive.errors import DerivationError
 
 _FUNCTIONS = {sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.Abs: ca.fabs, sp.exp: ca.exp,
-              sp.log: ca.log, sp.tanh: ca.tanh}
+              sp.log: ca.log, sp.tanh: ca.tanh, sp.floor: ca.floor}   # floor: a continuous joint's wrap
 
 
 def _number(x: sp.Number) -> float:
@@ -55,6 +55,8 @@ def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -
             out = env[expr]
         except KeyError:
             raise DerivationError(f"symbol {expr} has no value in the kernel") from None
+    elif expr.is_NumberSymbol:   # pi (a continuous joint's wrap): the nearest double
+        out = ca.SX(float(expr)) if constants is None else constants.setdefault(expr, ca.SX.sym(f"c{len(constants)}"))
     elif expr.is_Number:
         if constants is None or expr in (0, 1, -1):
             out = ca.SX(_number(expr))
@@ -88,3 +90,29 @@ def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -
         raise DerivationError(f"cannot translate {expr.func.__name__} to CasADi")
     memo.put(expr, out, memo.register(key, out) if key is not None else None)
     return out
+
+
+def batched(args, exprs):
+    """A numpy function of the expressions ``exprs`` in the symbols ``args``, evaluated at many
+    points at once: called with a P x len(args) array it returns the P x len(exprs) values
+    (double precision). Built through CasADi (each shared subexpression once, by
+    :func:`to_sx`): a 7-joint arm's laws build in milliseconds where SymPy's ``lambdify``
+    printer takes seconds. Raises DerivationError for a symbol not in ``args``."""
+    import numpy as np
+
+    exprs = [sp.sympify(e) for e in exprs]
+    x = ca.SX.sym("x", len(args))
+    env = {a: x[i] for i, a in enumerate(args)}
+    memo = Memo()
+    out = ca.vertcat(*[to_sx(e, env, memo) for e in exprs]) if exprs else ca.SX(0, 1)
+    f = ca.Function("f", [x], [out])
+    maps: dict[int, ca.Function] = {}
+
+    def call(X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        P = X.shape[0]
+        if P not in maps:
+            maps[P] = f.map(P)
+        return np.asarray(maps[P](X.T)).T.reshape(P, len(exprs))
+
+    return call

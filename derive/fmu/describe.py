@@ -18,10 +18,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from xml.sax.saxutils import escape
 
-from derive.codegen.forms import Form
+from derive.codegen.forms import Form, init_takes_dt
 from derive.codegen.views import ArmView
 from derive.control.pipeline import Derivation
 from derive.fmu.units import Unit, fmi_unit
+from derive.model.actuators import input_word
 
 # The controller's inputs (derive.codegen.kernels: theta, dtheta, yd, dyd, ddyd): field, unit, description
 INPUTS = (
@@ -87,6 +88,8 @@ class FmuView:
     step_size: str
     tool: str
     sources: tuple[str, ...]    # C files of sources/, compiled together
+    init_dt: bool = False       # the form's init takes dt (the implicit DOBC: derive.codegen.forms.init_takes_dt)
+    estimate_after: bool = False   # the estimate a step applied is read after it (the implicit DOBC moves z first)
 
 
 def mask_type(v: ArmView) -> str:
@@ -109,17 +112,19 @@ def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: 
     outputs = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
     units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name)) if fmi == 3 else units
     model = f"{v.arm}_{f.name}"
+    step = " with the implicit (backward-Euler) observer step" if v.implicit else ""
     return FmuView(
         fmi=fmi, arm=v.arm, ARM=v.ARM, n=v.n, real=v.real,
         real_type="Float32" if v.real == "float" else "Float64", runtime=v.runtime, model=model,
-        model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}), of arm {v.arm}: "
+        model_name=model, description=xml_text(f"{f.title}, {f.law} ({f.equations}){step}, of arm {v.arm}: "
                                                f"{v.description}"),
         token=token, form=f, variables=found, outputs=outputs, initial_unknowns=(), mask=mask_type(v),
         units=units, errors=errors(v),
         ok=f"{v.ARM}_OK", includes=(f"{v.arm}.h",), core="fmu/controller.c.jinja",
-        summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations})",
+        summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations}){step}",
         start_time="0.0", stop_time=repr(float(duration)), step_size=repr(float(sample_time)), tool=tool,
-        sources=sources)
+        sources=sources, init_dt=init_takes_dt(f, "implicit" if v.implicit else "explicit"),
+        estimate_after=v.implicit and f.name == "dobc")
 
 
 def _start(value: float) -> str:
@@ -147,19 +152,21 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
             slot = f"m->in.{field}[{i}]"
             add(f"{field}[{i + 1}]", "input", "continuous", "", "0.0", unit, doc.format(i=i + 1), slot, slot)
     law = f"{f.law} ({f.equations})"
+    units_u = d.arm.input_units   # V, or N m (N) in torque mode, per motor
+    what = {"V": "voltage", "N m": "torque", "N": "force"}
     for i in range(d.n):
-        add(f"u[{i + 1}]", "output", "discrete", "exact", "0.0", "V",
-            f"voltage of motor {i + 1}: {law}, computed from the inputs at the start of the last "
+        add(f"u[{i + 1}]", "output", "discrete", "exact", "0.0", units_u[i],
+            f"{what[units_u[i]]} of motor {i + 1}: {law}, computed from the inputs at the start of the last "
             "communication step and held over it; 0 before the first step", f"m->u[{i}]")
     if f.estimate:
         for i in range(d.n):
-            add(f"dhat[{i + 1}]", "output", "discrete", "exact", "0.0", "V",
+            add(f"dhat[{i + 1}]", "output", "discrete", "exact", "0.0", units_u[i],
                 f"disturbance estimate of joint {i + 1}, {f.estimate_law}, "
                 "the one the last step used; 0 before the first step", f"m->dhat[{i}]")
     if mask_type(v):
         for i in range(d.n):
             add(f"clipped[{i + 1}]", "output", "discrete", "exact", "false", "",
-                f"true when the last step clipped the voltage of motor {i + 1} to u_max[{i + 1}] (the API's "
+                f"true when the last step clipped the {what[units_u[i]]} of motor {i + 1} to u_max[{i + 1}] (the API's "
                 "mask; the integrator held, the observer fed the clipped u); false before the first step",
                 f"((m->clipped >> {i}) & 1u)", kind="Boolean")
     values = {str(s): float(x) for s, x in d.values}
@@ -172,8 +179,8 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
             text, slot if v.runtime else literal, slot if v.runtime else "", finite=True)
     for i, (literal, number) in enumerate(zip(v.u_max, v.py_u_max)):
         slot = f"m->params.u_max[{i}]"
-        add(f"u_max[{i + 1}]", causality, variability, "exact", repr(float(number)), "V",
-            f"voltage limit of motor {i + 1} (0 = none): u is clipped, the integrator held and the "
+        add(f"u_max[{i + 1}]", causality, variability, "exact", repr(float(number)), units_u[i],
+            f"{what[units_u[i]]} limit of motor {i + 1} (0 = none): u is clipped, the integrator held and the "
             "observer fed the clipped u", slot if v.runtime else literal, slot if v.runtime else "", finite=True)
     return tuple(out), tuple(units[k] for k in sorted(units))
 
@@ -211,14 +218,16 @@ class PlantView:
 
 
 def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
-                    vectors: tuple[tuple[str, str, str, tuple[float, ...]], ...],
+                    vectors: tuple[tuple[str, object, str, tuple[float, ...]], ...],
                     scalars: tuple[tuple[str, str, str, float], ...],
-                    fmi: int) -> tuple[tuple[Variable, ...], tuple[Unit, ...], tuple[tuple[str, str], ...]]:
+                    fmi: int, inputs: tuple[str, ...] | None = None
+                    ) -> tuple[tuple[Variable, ...], tuple[Unit, ...], tuple[tuple[str, str], ...]]:
     """The plant FMU's variables: input u, outputs (the controller's inputs), and
     tunable parameters: ``params`` (name, value, unit, description) of the true
     arm (m->p[k]); ``vectors`` (name, unit, description, values) per joint and
     ``scalars`` (name, unit, description, value), each read from the instance
-    field of the same name. Also the units and the defaults (C lvalue, literal)."""
+    field of the same name (a vector's unit: one string, or one per joint). ``inputs``: the
+    unit of each u_i (V, or N m in torque mode). Also the units and the defaults (C lvalue, literal)."""
     from derive.codegen.printing import c_literal
 
     rtype = "Real" if fmi == 2 else "Float64"
@@ -233,9 +242,11 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
         out.append(Variable(len(out) + 1, name, rtype, causality, variability, initial, start,
                             u.name if u else "", xml_text(doc), get, set_, finite))
 
+    inputs = inputs or ("V",) * n
+    what = {"V": "voltage", "N m": "torque", "N": "force"}
     for i in range(n):
-        add(f"u[{i + 1}]", "input", "continuous", "", "0.0", "V",
-            f"voltage of motor {i + 1}, held over the communication step (zero-order hold)", f"m->u[{i}]",
+        add(f"u[{i + 1}]", "input", "continuous", "", "0.0", inputs[i],
+            f"{what[inputs[i]]} of motor {i + 1}, held over the communication step (zero-order hold)", f"m->u[{i}]",
             f"m->u[{i}]")
     for field, unit, doc in INPUTS:
         for i in range(n):
@@ -252,8 +263,8 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
         field = name.split("[")[0]
         for i, value in enumerate(values):
             slot = f"m->{field}[{i}]"
-            add(f"{name}[{i + 1}]", "parameter", "tunable", "exact", repr(value), unit, doc.format(i=i + 1), slot,
-                slot, finite=True)
+            add(f"{name}[{i + 1}]", "parameter", "tunable", "exact", repr(value),
+                unit if isinstance(unit, str) else unit[i], doc.format(i=i + 1), slot, slot, finite=True)
             defaults.append((slot, c_literal(value, "double")))
     for name, unit, doc, value in scalars:
         slot = f"m->{name}"
@@ -265,6 +276,7 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
     from derive.fmu.plant import amplitude_rad, plant_kernels, plant_parameters
+    from derive.sim.start import reference_offset
 
     arm = d.arm
     s = arm.simulation
@@ -279,20 +291,27 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
                 else "")
         params.append((str(sym), value, p.unit if p is not None else "", f"{what} of the simulated arm{note}"))
     limits = tuple(float(m.input_limit) if m.input_limit else 0.0 for m in arm.motors)
+    forces = tuple("N" if p else "N m" for p in arm.prismatic)
+    word = input_word(arm.input_units)
+    limit_field = {"voltage": "motor.voltage_limit", "torque": "motor.torque_limit"}.get(
+        word, "motor.voltage_limit or motor.torque_limit")
     vectors = (
-        ("coulomb", "N m", "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/0.01) (simulation.coulomb_friction)",
+        ("coulomb", forces, "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/0.01) (simulation.coulomb_friction)",
          s.coulomb_friction),
-        ("viscous", "N m s/rad", "extra viscous friction of joint {i} (simulation.viscous_friction)",
-         s.viscous_friction),
-        ("dist", "V", "constant input disturbance d of motor {i}, B (u + d) (eq. 12; simulation.disturbance)",
+        ("viscous", tuple("N s/m" if p else "N m s/rad" for p in arm.prismatic),
+         "extra viscous friction of joint {i} (simulation.viscous_friction)", s.viscous_friction),
+        ("dist", arm.input_units, "constant input disturbance d of motor {i}, B (u + d) (eq. 12; simulation.disturbance)",
          s.disturbance),
-        ("u_max", "V", "the amplifier's voltage limit of motor {i}, 0 = none (motor.voltage_limit)", limits),
+        ("u_max", arm.input_units, f"the amplifier's {word} limit of motor {{i}}, 0 = none ({limit_field})", limits),
         ("start", "s", "when the pulse train of link {i} starts (simulation.start)", s.start),
         ("theta0", "rad", "angle of joint {i} at the start, at rest (simulation.initial_theta)", s.initial_theta),
+        ("yd0", "rad", "y_d(0) of output {i}: the reference starts there at rest and the pulse train is added to "
+         "it; 0, or C theta0 for simulation.reference_start = \"measured\" (set it with theta0)",
+         tuple(float(v) for v in reference_offset(d, s))),
     )
     scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
                ("amplitude", "rad", "pulse amplitude (simulation.amplitude_deg, section 5.2)", amplitude_rad(s)))
-    found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi)
+    found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi, arm.input_units)
     if fmi == 3:
         units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name))
     listed = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
@@ -300,7 +319,8 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
     return PlantView(
         fmi=fmi, model=model, model_name=model,
         description=xml_text(f"simulation plant of arm {arm.name} ([simulation] of its arm file): the true arm "
-                             "with friction, heavier tip, input disturbance and voltage limits (eq. 12), and the "
+                             f"with friction, heavier tip, input disturbance and {input_word(arm.input_units)} limits "
+                             "(eq. 12), and the "
                              "reference Gr(s) = 1/(s^2 + 1.8 s + 1) of a pulse train (section 5.2); RK4 with "
                              f"{s.substeps} substeps per communication step"),
         token=token, tool=tool, units=units, variables=found, outputs=listed, initial_unknowns=listed,

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from derive.codegen.files import REALS, library_files, manifest_text
 from derive.codegen.forms import DEFAULT_FORM, FORMS
-from derive.codegen.kernels import ParamsMode
+from derive.codegen.kernels import OBSERVER_STEPS, ParamsMode
 from derive.codegen.render import render
 from derive.codegen.views import arm_view
 from derive.control.pipeline import Derivation
@@ -57,17 +57,19 @@ PLATFORMS = {
 @dataclass(frozen=True)
 class FmuOptions:
     """What to package: FMI version, controller form, C real type, where the
-    parameters live and the sample time [s] (None: the arm's simulation.sample_time)."""
+    parameters live, the sample time [s] (None: the arm's simulation.sample_time) and the
+    observer step (derive generate --observer: explicit or implicit)."""
 
     fmi: int = 3
     form: str = DEFAULT_FORM
     real: str = "double"
     params: ParamsMode = ParamsMode.BAKED
     sample_time: float | None = None
+    observer: str = "explicit"
 
 
 def check_options(fmi: object, form: object, real: object, params: object,
-                  sample_time: object = None) -> FmuOptions:
+                  sample_time: object = None, observer: object = "explicit") -> FmuOptions:
     """Validated options; one DeriveError naming every bad one (option, expected, given)."""
     problems = []
     if str(fmi) not in {str(v) for v in FMI_VERSIONS}:
@@ -82,10 +84,12 @@ def check_options(fmi: object, form: object, real: object, params: object,
     if sample_time is not None and not (isinstance(sample_time, (int, float)) and not isinstance(sample_time, bool)
                                         and math.isfinite(sample_time) and sample_time > 0):
         problems.append(f"--sample-time: expected a finite number of seconds > 0, got {sample_time!r}")
+    if observer not in OBSERVER_STEPS:
+        problems.append(f"--observer: expected one of {', '.join(OBSERVER_STEPS)}, got {observer!r}")
     if problems:
         raise DeriveError("; ".join(problems))
     return FmuOptions(int(str(fmi)), str(form), str(real), ParamsMode(getattr(params, "value", params)),
-                      None if sample_time is None else float(sample_time))
+                      None if sample_time is None else float(sample_time), str(observer))
 
 
 def platform_names() -> tuple[str, str, str]:
@@ -145,8 +149,8 @@ def zip_bytes(files: dict[str, bytes]) -> bytes:
 def controller_sources(d: Derivation, o: FmuOptions, tool: str) -> tuple[str, dict[str, str], dict[str, str]]:
     """(model identifier, sources/ {name: text}, top-level XML {name: text}) of a controller FMU."""
     f = FORMS[o.form]
-    v = arm_view(d, o.real, o.params)
-    library = {rel.split("/", 1)[1]: text for rel, text in library_files(d, o.real, o.params).items()}
+    v = arm_view(d, o.real, o.params, observer=o.observer)
+    library = {rel.split("/", 1)[1]: text for rel, text in library_files(d, o.real, o.params, v).items()}
     model = f"{d.arm.name}_{f.name}"
     glue = f"{model}_fmu.c"
     c_files = tuple(sorted([*(n for n in library if n.endswith(".c")), glue]))
@@ -195,7 +199,7 @@ def controller_fmu(d: Derivation, o: FmuOptions, cc: str = "cc", arm_bytes: byte
     tool = f"derive {metadata.version('derive')}"
     model, sources, top = controller_sources(d, o, tool)
     options = {"fmi": o.fmi, "form": o.form, "real": o.real, "params": o.params.value,
-               "sample_time": o.sample_time}
+               "sample_time": o.sample_time, **({"observer": o.observer} if o.observer != "explicit" else {})}
     return _package(d, model, o.fmi, sources, top, cc, arm_bytes, options)
 
 

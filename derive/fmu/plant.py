@@ -9,7 +9,8 @@ a constant input disturbance d and the amplifier's voltage limits,
     J(theta) theta'' = B (u_a + d) - G(theta, theta') - tau_c tanh(theta'/0.01) - b theta'   (eq. 12)
 
 with u_a = u clipped to the limits, together with the reference of section 5.2:
-Gr(s) = 1/(s^2 + 1.8 s + 1) driven by a pulse train. Each communication step
+Gr(s) = 1/(s^2 + 1.8 s + 1) driven by a pulse train added to y_d(0) = yd0 (0, or
+C theta0 for ``reference_start = "measured"``, derive.sim.start). Each communication step
 of length H holds u and the pulse r(t) (zero-order hold) and takes
 ``substeps`` classical RK4 steps of length H/substeps of plant and filter, as
 ``derive simulate`` does. The outputs (theta, theta', y_d, y_d', y_d'') wire
@@ -21,7 +22,7 @@ Kernels (CasADi, printed to C double by derive.codegen.printing):
 =============  ====================================  =========================================
 kernel         inputs                                outputs
 =============  ====================================  =========================================
-pulse          t, start (n), period, amplitude       r (n): amplitude in each first half-period
+pulse          t, start (n), period, amplitude, yd0  r (n): yd0 + amplitude in each first half-period
 amplifier      u, u_max (n)                          u_a: u clipped where u_max > 0
 reference      f = (y_d, y_d') (2n), r               y_d'' = r - 1.8 y_d' - y_d (derive.sim.kernels)
 rk4            x, f, u_a, d, tau_c, b, r, H, p       one RK4 substep of length H/substeps (derive.sim.kernels)
@@ -75,8 +76,9 @@ def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int)
     u, dist, tau_c, visc, r, u_max, start = (sym(k, n) for k in ("u", "d", "tauc", "bx", "r", "u_max", "start"))
     H, p, t, period, amp = sym("H"), sym("p", len(params)), sym("t"), sym("period"), sym("amplitude")
     on = ca.logic_and(start <= t, ca.fmod(t - start, period) < period / 2)
-    pulse = ca.Function("pulse", [t, start, period, amp], [ca.if_else(on, amp, 0)],
-                        ["t", "start", "period", "amplitude"], ["r"], {"cse": True})
+    yd0 = sym("yd0", n)
+    pulse = ca.Function("pulse", [t, start, period, amp, yd0], [yd0 + ca.if_else(on, amp, 0)],
+                        ["t", "start", "period", "amplitude", "yd0"], ["r"], {"cse": True})
     clipped = ca.if_else(u_max > 0, ca.fmin(ca.fmax(u, -u_max), u_max), u)
     amplifier = ca.Function("amplifier", [u, u_max], [clipped], ["u", "u_max"], ["u_a"], {"cse": True})
     step = rk4_function(d, params)
@@ -86,7 +88,7 @@ def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int)
     return pulse, amplifier, reference_function(n), rk4
 
 
-_DOCS = {"pulse": "pulse train r(t) of section 5.2", "amplifier": "the amplifier's voltage limits",
+_DOCS = {"pulse": "pulse train r(t) of section 5.2 added to y_d(0)", "amplifier": "the amplifier's voltage limits",
          "reference": "Gr(s) = 1/(s^2 + 1.8 s + 1): y_d'' from the filter state and r",
          "rk4": "one classical RK4 substep of plant and reference filter (eq. 12, section 5.2)"}
 

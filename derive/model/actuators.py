@@ -54,6 +54,26 @@ class Motor:
         return self.voltage_limit if self.actuation is Actuation.VOLTAGE else self.torque_limit
 
 
+def input_unit(motor: Motor, prismatic: bool = False) -> str:
+    """The unit of u_i, of the disturbance d_i (B (u + d), eq. 12) and of the input limit: "V" for
+    voltage actuation, "N m" for torque actuation ("N" on a prismatic joint)."""
+    if motor.actuation is Actuation.VOLTAGE:
+        return "V"
+    return "N" if prismatic else "N m"
+
+
+def units_text(units) -> str:
+    """One unit for a list of per-joint units: the unit when they agree, else "V or N m (per motor)"."""
+    kinds = list(dict.fromkeys(units))
+    return kinds[0] if len(kinds) == 1 else " or ".join(kinds) + " (per motor)"
+
+
+def input_word(units) -> str:
+    """"voltage", "torque" or "input" (mixed or forces) for per-joint input units."""
+    kinds = set(units)
+    return "voltage" if kinds == {"V"} else "torque" if kinds == {"N m"} else "input"
+
+
 def terms(act: Actuator) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
     """(B_ii, damping, reflected rotor inertia) of one drive (eq. 12; module docstring)."""
     gr = act.gear_ratio

@@ -6,16 +6,25 @@ those worlds at once: a C (and C++) identifier of at most 31 characters of
 lowercase ASCII letters, digits and '_' (macOS and Windows fold case, so names
 differing only by case would share a folder), not a C, C++ or Python keyword,
 not a C library, CasADi, CMake, Python builtin or module, or Windows device
-name, and no clash with the names derive generates (also across arms: arm
+name, and no clash with the names derive generates across arms (arm
 'x_kernel' would make the kernel names of arm 'x'). A name is checked, never
 rewritten: a rejected name gets the reason, naming an offending character by
 its code point so that look-alikes (Cyrillic 'а') and invisible ones show.
+
+The names derive generates inside an arm's code never meet the arm name, by
+construction: every identifier the generated C declares at file scope (and every
+CMake target and variable) is the arm name followed by '_' and one of
+GENERATED_SUFFIXES (macros: its upper case), the arm name itself is never an
+identifier of the generated C or Python (it is a file, module, project and target
+name only), and ports, parameters, statics and CSE registers (theta, dt, u, z, w1,
+k1, a0, jsolve1, clip, ...) are locals, struct fields or statics of a .c file. So an
+arm may be named like a derived symbol: 'z1' (the Unitree Z1), 'e', 'dt', 'u',
+'theta1', 'w1' (tests/test_names.py compiles and runs such arms with -Wshadow -Werror).
 """
 from __future__ import annotations
 
 import builtins
 import keyword
-import re
 import reprlib
 import sys
 import unicodedata
@@ -73,20 +82,10 @@ select poll times dup
 # vectors); everything CasADi defines itself starts with "casadi".
 CASADI_NAMES = frozenset("arg res iw w mem sz_arg sz_res sz_iw sz_w f0 s0 sq".split())
 
-# Names derive itself generates (ports, parameter fields, kernels; see symbols.py,
-# kernels.py) that stand alone in the generated code.
-GENERATED_NAMES = frozenset("""
-real params state input gains dhat dhat0 u_star u_dobc u_npid zdot lumped theta dtheta
-ddtheta yd dyd ddyd int_e e0 de0 derive
-""".split())
-# theta1, dtheta2, m1, kt3, w1, k2, ...: a port or parameter name with its joint number
-_GENERATED_PATTERN = re.compile(
-    r"(theta|dtheta|ddtheta|yd|dyd|ddyd|int_e|u|z|e|de|e0_|de0_|l|m|c|ic|bv|mp|rp|ip|kt|kv|ra|gr|"
-    r"jm|w|k|t|g)[0-9]*\Z")
-
 # What the templates append to an arm name (lowercase; macros use it upper-cased):
 # <arm>_real, <arm>_kernel_gains, <ARM>_KERNELS_H, files <arm>_kernels.c, target <arm>_selftest,
-# the plant's <arm>_mass_matrix, <arm>_plant.c, target <arm>_plant_selftest; the CMake variables
+# the plant's <arm>_mass_matrix, <arm>_plant.c, target <arm>_plant_selftest; the regressor's
+# (derive generate --regressor) <arm>_regressor, <ARM>_REGRESSOR_H, <ARM>_NB; the CMake variables
 # <ARM>_BUILD_TESTS, <ARM>_INSTALL, <ARM>_TOP_LEVEL, <ARM>_CMAKE_DIR.
 GENERATED_SUFFIXES = frozenset("""
 real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state mask
@@ -96,6 +95,7 @@ mass_matrix bias gravity input_matrix forward_dynamics plant plant_h plant_selft
 plant_kernel_bias plant_kernel_gravity plant_kernel_input_matrix plant_kernel_forward_dynamics
 build_tests install top_level cmake_dir
 mom_state mom_init mom_step mom_estimate kernel_mom kernel_mom_next kernel_mom_init
+regressor regressor_h regressor_selftest regressor_kernel base_names base_values nb
 """.split())
 # A name ending in _<tail> would make the same names as the arm without it: arm x_kernel's
 # x_kernel_gains is arm x's kernel; x_kernels.h and the x_selftest target are arm x's files.
@@ -192,8 +192,7 @@ def _reserved(name: str) -> str | None:
         return "a name that does not start with 'casadi' (CasADi's own prefix)"
     for label, words in (("a C keyword", C_KEYWORDS), ("a C++ keyword", CPP_KEYWORDS),
                          ("a C standard library name", C_LIBRARY),
-                         ("a name CasADi's generated code uses", CASADI_NAMES),
-                         ("a name derive generates", GENERATED_NAMES)):
+                         ("a name CasADi's generated code uses", CASADI_NAMES)):
         if name in words:
             return f"a name that is not {label}"
     tail = next((t for t in CLASHING_TAILS if name.endswith("_" + t)), None)
@@ -202,8 +201,6 @@ def _reserved(name: str) -> str | None:
                 f"of an arm named {name[: -len(tail) - 1]!r})")
     if name in CMAKE_TARGETS:
         return "a name that is not a target name CMake reserves"
-    if _GENERATED_PATTERN.match(name):
-        return "a name that is not a name derive generates (a port or parameter such as theta1, m2, w1)"
     if keyword.iskeyword(name) or keyword.issoftkeyword(name):
         return "a name that is not a Python keyword"
     if name in PYTHON_BUILTINS:

@@ -1,16 +1,36 @@
 """Exact rigid-body algebra for building a :class:`~derive.model.chain.Chain`.
 
 Rotations from roll-pitch-yaw (URDF: extrinsic X-Y-Z, R = Rz(yaw) Ry(pitch)
-Rx(roll)), from an axis and angle (Rodrigues), and from DH parameters; angles
-that are multiples of pi/2 to within 1e-12 (1.5707963267948966) become exact
-multiples of pi/2, so their rotations have exact 0 and +-1 entries. Bodies are
-the ten inertial parameters (m, h = m c, I_o about the frame's origin), linear
-in the mass distribution, so moving a body to another frame and merging two
-bodies are exact and stay linear in the parameter symbols.
+Rx(roll)), from an axis and angle (Rodrigues), and from DH parameters. Bodies
+are the ten inertial parameters (m, h = m c, I_o about the frame's origin),
+linear in the mass distribution, so moving a body to another frame and
+merging two bodies are exact and stay linear in the parameter symbols.
+
+Numbers enter as rationals, so that the cost of everything downstream (the
+derivation, its proofs, its display) does not depend on how a file writes them:
+
+* a decimal is the Rational of its shortest decimal (the file's own text);
+* an angle within ``SNAP_TOLERANCE`` (1e-9 rad) of a multiple of pi/2 is that
+  multiple (ROS files write pi/2 as 1.57079632679, 4.9e-12 rad off), so its
+  rotation has exact 0 and +-1 entries; :func:`angle_note` says what was
+  snapped and which near miss (1.5708, 3.7e-6 rad off) was kept as written;
+* a constant rotation whose entries are not all rational (cos and sin of a
+  decimal angle, of pi/3, a rotation about a non-unit-rational axis) is the
+  rotation of the integer quaternion nearest its own scaled by 2^60
+  (:func:`rational_rotation`): exactly orthogonal with rational entries, within
+  4e-18 of the stated rotation (double precision resolves 2.2e-16), so every
+  identity of rigid-body mechanics holds exactly and no cos/sin of a constant
+  reaches the dynamics;
+* a unit vector (a joint axis, a gravity direction) whose length is not
+  rational is the nearest rational point of the unit sphere (stereographic
+  coordinates rounded to 2^-60, :func:`rational_unit`): exactly unit, within
+  4e-18 of the direction given.
 
 Sources: URDF specification (ros.org wiki, ``urdf/XML/joint``, ``link``);
 R. Featherstone, Rigid Body Dynamics Algorithms (2008), sec. 2.13 (inertia
-transformation) and the parallel-axis theorem.
+transformation) and the parallel-axis theorem; rational rotations from integer
+quaternions (Euler-Rodrigues; e.g. Cayley, and Shepperd 1978 for the
+quaternion of a rotation matrix).
 """
 from __future__ import annotations
 
@@ -18,11 +38,15 @@ import math
 import re
 from fractions import Fraction
 
+import mpmath
 import sympy as sp
 
 from derive.model.chain import Body, Transform
 
-SNAP_TOLERANCE = 1e-12   # rad: an angle this close to k pi/2 is k pi/2 exactly
+SNAP_TOLERANCE = 1e-9    # rad: an angle this close to k pi/2 is k pi/2 exactly
+NEAR_MISS = 1e-3         # rad: an angle this close to k pi/2 but not snapped is reported
+ROTATION_BITS = 60       # integer quaternions and stereographic coordinates to 2^-60
+ROTATION_ERROR = 4e-18   # the stated bound of a rationalised rotation or unit vector (entry-wise)
 _HALF_PI = math.pi / 2
 _PI_TEXT = re.compile(r"\s*([-+]?)\s*(\d+(?:\.\d*)?)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?))?\s*\Z")
 
@@ -38,12 +62,90 @@ def rational(x: Fraction | int | float) -> sp.Rational:
 
 def exact_angle(x: Fraction | int | float) -> sp.Expr:
     """An angle in radians, exact: k pi/2 when within ``SNAP_TOLERANCE`` of it,
-    else the exact decimal (then cos and sin stay exact symbolic values)."""
+    else the exact decimal (its rotation is then made rational, :func:`rational_rotation`)."""
     value = float(x)
     k = round(value / _HALF_PI)
     if abs(value - k * _HALF_PI) <= SNAP_TOLERANCE:
         return k * sp.pi / 2
     return rational(x)
+
+
+def angle_note(x: Fraction | int | float) -> tuple[str, str] | None:
+    """('snapped' | 'kept', text) for an angle near a multiple of pi/2, else None: what
+    :func:`exact_angle` did with it, for the chain's notes."""
+    value = float(x)
+    k = round(value / _HALF_PI)
+    off = abs(value - k * _HALF_PI)
+    if off == 0.0 or k == 0 or off > NEAR_MISS:
+        return None
+    target = {1: "pi/2", -1: "-pi/2", 2: "pi", -2: "-pi"}.get(k, f"{k}*pi/2")
+    if off <= SNAP_TOLERANCE:
+        return "snapped", f"{_text(x)} -> {target} ({off:.2g} rad off)"
+    return "kept", f"{_text(x)} ({off:.2g} rad from {target})"
+
+
+def _text(x: Fraction | int | float) -> str:
+    return repr(float(x)) if not isinstance(x, float) else repr(x)
+
+
+def _rational_entries(M: sp.MatrixBase) -> bool:
+    return all(sp.sympify(e).is_Rational for e in M)
+
+
+def rational_rotation(R: sp.MatrixBase) -> sp.ImmutableMatrix:
+    """A constant 3 x 3 rotation with rational entries: ``R`` itself when its entries are
+    rational, else the rotation of the integer quaternion nearest 2^60 q(R) (q(R) by
+    Shepperd's method at 50 digits): R(q) = (1/|q|^2) [[w^2 + x^2 - y^2 - z^2, 2 (x y - w z),
+    ...]], exactly orthogonal, entry-wise within ``ROTATION_ERROR`` of ``R``."""
+    R = sp.Matrix(R)
+    if _rational_entries(R):
+        return sp.ImmutableMatrix(R)
+    with mpmath.workdps(50):
+        m = [[mpmath.mpf(str(sp.N(R[i, j], 60))) for j in range(3)] for i in range(3)]
+        tr = m[0][0] + m[1][1] + m[2][2]
+        cand = [tr, m[0][0], m[1][1], m[2][2]]
+        k = max(range(4), key=lambda i: cand[i])
+        if k == 0:
+            w = mpmath.sqrt(1 + tr) / 2
+            q = [w, (m[2][1] - m[1][2]) / (4 * w), (m[0][2] - m[2][0]) / (4 * w), (m[1][0] - m[0][1]) / (4 * w)]
+        elif k == 1:
+            x = mpmath.sqrt(1 + 2 * m[0][0] - tr) / 2
+            q = [(m[2][1] - m[1][2]) / (4 * x), x, (m[0][1] + m[1][0]) / (4 * x), (m[0][2] + m[2][0]) / (4 * x)]
+        elif k == 2:
+            y = mpmath.sqrt(1 + 2 * m[1][1] - tr) / 2
+            q = [(m[0][2] - m[2][0]) / (4 * y), (m[0][1] + m[1][0]) / (4 * y), y, (m[1][2] + m[2][1]) / (4 * y)]
+        else:
+            z = mpmath.sqrt(1 + 2 * m[2][2] - tr) / 2
+            q = [(m[1][0] - m[0][1]) / (4 * z), (m[0][2] + m[2][0]) / (4 * z), (m[1][2] + m[2][1]) / (4 * z), z]
+        w, x, y, z = (int(mpmath.nint(c * 2 ** ROTATION_BITS)) for c in q)
+    n = w * w + x * x + y * y + z * z
+    rows = [[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]
+    return sp.ImmutableMatrix([[sp.Rational(e, n) for e in row] for row in rows])
+
+
+def rational_unit(v: sp.MatrixBase) -> sp.ImmutableMatrix:
+    """The unit vector of a non-zero rational 3-vector ``v``, rational: exact when |v| is
+    rational, else the point of the unit circle (two non-zero entries) or sphere (three)
+    whose stereographic coordinates, from the pole opposite v, are those of v/|v| rounded
+    to 2^-60: exactly unit, zero entries kept, entry-wise within ``ROTATION_ERROR`` of v/|v|."""
+    v = sp.Matrix(v)
+    root = sp.sqrt((v.T * v)[0, 0])
+    if root.is_Rational:
+        return sp.ImmutableMatrix(v / root)
+    live = [i for i in range(3) if v[i] != 0]
+    s = 2 ** ROTATION_BITS
+    with mpmath.workdps(50):
+        u = [mpmath.mpf(str(sp.N(v[i] / root, 60))) for i in live]
+        sign = 1 if u[-1] >= 0 else -1       # project from the pole opposite v: 1 + |u_last| >= 1
+        X = [int(mpmath.nint(c / (1 + sign * u[-1]) * s)) for c in u[:-1]]
+    den = s * s + sum(x * x for x in X)
+    point = [sp.Rational(2 * x * s, den) for x in X] + [sign * sp.Rational(s * s - sum(x * x for x in X), den)]
+    out = [sp.Integer(0)] * 3
+    for i, value in zip(live, point):
+        out[i] = value
+    return sp.ImmutableMatrix(out)
 
 
 def parse_pi(text: str) -> sp.Expr | None:
@@ -59,32 +161,49 @@ def parse_pi(text: str) -> sp.Expr | None:
     return sign * rational(num / den) * sp.pi
 
 
+def _constant(angle: sp.Expr) -> bool:
+    return not sp.sympify(angle).free_symbols
+
+
+def _settle(R: sp.MatrixBase, angles: tuple[sp.Expr, ...]) -> sp.ImmutableMatrix:
+    """A rotation of constant angles made rational (:func:`rational_rotation`); symbolic ones as they are."""
+    return rational_rotation(R) if all(_constant(a) for a in angles) else sp.ImmutableMatrix(R)
+
+
 def rot_x(a: sp.Expr) -> sp.ImmutableMatrix:
     c, s = sp.cos(a), sp.sin(a)
-    return sp.ImmutableMatrix([[1, 0, 0], [0, c, -s], [0, s, c]])
+    return _settle(sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]]), (a,))
 
 
 def rot_y(a: sp.Expr) -> sp.ImmutableMatrix:
     c, s = sp.cos(a), sp.sin(a)
-    return sp.ImmutableMatrix([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    return _settle(sp.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]]), (a,))
 
 
 def rot_z(a: sp.Expr) -> sp.ImmutableMatrix:
     c, s = sp.cos(a), sp.sin(a)
-    return sp.ImmutableMatrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    return _settle(sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]]), (a,))
 
 
 def rpy(roll: sp.Expr, pitch: sp.Expr, yaw: sp.Expr) -> sp.ImmutableMatrix:
-    """URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll) (3 x 3)."""
-    return sp.ImmutableMatrix(rot_z(yaw) * rot_y(pitch) * rot_x(roll))
+    """URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll) (3 x 3); for
+    constant angles rational (:func:`rational_rotation` of the product, one rounding)."""
+    def raw(f, a):
+        c, s = sp.cos(a), sp.sin(a)
+        return {"x": sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]]),
+                "y": sp.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+                "z": sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[f]
+    return _settle(raw("z", yaw) * raw("y", pitch) * raw("x", roll), (roll, pitch, yaw))
 
 
 def axis_angle(axis: sp.Matrix, q: sp.Expr) -> sp.ImmutableMatrix:
-    """Rotation by q about the unit ``axis`` (3 x 1): c 1 + s [a]x + (1 - c) a a^T."""
+    """Rotation by q about the unit ``axis`` (3 x 1): c 1 + s [a]x + (1 - c) a a^T; for a
+    constant q rational (:func:`rational_rotation`)."""
     a = sp.Matrix(axis)
     c, s = sp.cos(q), sp.sin(q)
     cross = sp.Matrix([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return sp.ImmutableMatrix((c * sp.eye(3) + s * cross + (1 - c) * a * a.T).applyfunc(sp.expand))
+    R = (c * sp.eye(3) + s * cross + (1 - c) * a * a.T).applyfunc(sp.expand)
+    return _settle(R, (q,))
 
 
 def translation(x: sp.Expr, y: sp.Expr, z: sp.Expr) -> Transform:

@@ -15,11 +15,13 @@ start               [0, 5, 10, ...]        when each link's pulse train starts [
 coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
 viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
 payload_scale       1.2                    mass factor of the last link's point masses
-disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V] (eq. 12)
+disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V; N m in torque mode] (eq. 12)
 velocity_noise      [0, ...]               tachometer noise std [rad/s]
 position_noise      [0, ...]               potentiometer noise std [rad]
 tacho_filter_hz     0.0                    first-order low-pass on theta-dot, 0 = none
 initial_theta       [0, ...]               the arm's initial joint angles [rad] (at rest)
+reference_start     "zero"                 where y_d starts: "zero" (section 5.2) or "measured":
+                                           y_d(0) = C theta(0), the pulse train an offset added to it
 seed                1                      noise seed
 link_mass_scale     [1, ...]               mass factor of each link (its inertia scales too)
 torque_constant_scale   [1, ...]           factor on each motor's torque constant
@@ -65,6 +67,10 @@ class SimSettings:
     torque_constant_scale: tuple[float, ...] = ()
     voltage_constant_scale: tuple[float, ...] = ()
     resistance_scale: tuple[float, ...] = ()
+    reference_start: str = "zero"   # "zero" or "measured" (derive.sim.start)
+
+
+REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
 
 
 def default_settings(n: int) -> SimSettings:
@@ -98,7 +104,7 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
         return base, problems
     if not isinstance(table, dict):
         return base, [Problem("simulation", "a table", repr(table)[:60])]
-    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed"}
+    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start"}
     values: dict[str, Any] = {}
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",
@@ -131,6 +137,14 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                         repr(v)[:60]))
             else:
                 values[key] = tuple(float(x) for x in v)
+    if "reference_start" in table:
+        v = table["reference_start"]
+        if v not in REFERENCE_STARTS:
+            problems.append(Problem("simulation.reference_start", "\"zero\" (y_d starts at 0, section 5.2) or "
+                                    "\"measured\" (y_d starts at the initial pose C theta(0), the pulse train added "
+                                    "to it)", repr(v)[:60]))
+        else:
+            values["reference_start"] = v
     duration = values.get("duration", base.duration)
     sample = values.get("sample_time", base.sample_time)
     if sample >= duration and "sample_time" in values:

@@ -24,7 +24,9 @@ base frame, normalised; a planar arm gives [x, y], default [0, -1], so
 [0, 0, -1]), ``actuation`` ("voltage", the default, or "torque": the default
 of every ``[[motor]]``; torque-actuated arms may leave ``[[motor]]`` out).
 DH and URDF arms give each joint's viscous friction in ``[[motor]]``
-(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default).
+(``viscous_friction``; a URDF's ``<dynamics damping>`` is the default), and may
+replace a body's ten parameters by a ``[[body_override]]`` table
+(:mod:`derive.model.override`; derive identify writes them).
 
 The runtime parameters (:attr:`Arm.parameters`) are the file's own values,
 each with its unit and field: the chain's, the drives' (Kt, Kv, Ra, gr, Jm,
@@ -44,16 +46,18 @@ from typing import Any
 import sympy as sp
 
 from derive.errors import Problem, SpecError
-from derive.model.actuators import Motor, actuation_value, actuator, read_motors, terms
+from derive.model.actuators import Motor, actuation_value, actuator, input_unit, read_motors, terms
 from derive.model.chain import Actuation, Actuator, Chain, Parameter
 from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show,
                                  text_problem)
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
+from derive.model.override import apply_overrides
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.dh import dh_chain
 from derive.model.singular import unmoved_joint
+from derive.model.rigid import rational_unit
 from derive.model.urdf import urdf_chain
 
 __all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
@@ -149,7 +153,20 @@ class Arm:
         """Every runtime parameter, in canonical order: the chain's (its bodies' and
         gravity, then the drives' grouped by kind: Kt, Kv, Ra, gr, Jm, bv), the
         controller's (T1, T2, w)."""
-        return self.chain.parameters + controller_parameters(self.controller)
+        return self.chain.parameters + controller_parameters(self.controller, self.prismatic)
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """Per joint, base to tip: True for a prismatic joint (planar arms: none)."""
+        if self.spatial is None:
+            return (False,) * self.n
+        return tuple(not j.type.rotates for j in self.spatial.joints)
+
+    @property
+    def input_units(self) -> tuple[str, ...]:
+        """The unit of each u_i (and d_i, its limit): V, or N m (N) in torque mode
+        (derive.model.actuators.input_unit)."""
+        return tuple(input_unit(m, p) for m, p in zip(self.motors, self.prismatic))
 
 
 T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
@@ -181,25 +198,45 @@ def momentum_parameters(c: "Controller") -> tuple[Parameter, ...]:
                  for i, (s, v) in enumerate(zip(momentum_symbols(len(gains)), gains), 1))
 
 
-def observer_parameters(w=None, W=None, field: str = "controller.w") -> tuple[Parameter, ...]:
-    """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W)."""
+def gain_unit(prismatic: tuple[bool, ...], i: int, j: int) -> str:
+    """The unit of W[i][j] (0-based): p = W theta' is a generalized force (z + p = B dhat, eq. 22,
+    a joint torque in both actuations), so W[i][j] is joint i's force unit times s per joint j's
+    coordinate unit: N m s/rad between revolute joints (N s/m between prismatic ones)."""
+    return f"{'N' if prismatic[i] else 'N m'} s/{'m' if prismatic[j] else 'rad'}"
+
+
+def gain_units_text(prismatic: tuple[bool, ...]) -> str:
+    """W's unit in words: "N m s/rad" (every joint revolute), "N s/m" (every joint prismatic), else
+    per entry (:func:`gain_unit`)."""
+    if len(set(prismatic)) == 1:
+        return gain_unit(prismatic, 0, 0)
+    return "W[i][j] in joint i's force unit s per joint j's coordinate unit (N m s/rad, N m s/m, N s/rad, N s/m)"
+
+
+def observer_parameters(w=None, W=None, field: str = "controller.w",
+                        prismatic: tuple[bool, ...] | None = None) -> tuple[Parameter, ...]:
+    """The observer gain as parameters: w1..wn (eq. 25 pattern) or W1_1..Wn_n (a full W), each with
+    its unit (:func:`gain_unit`; ``prismatic``: which joints are prismatic, default none; w_j has the
+    unit of the diagonal entry W[j][j])."""
+    n = len(W) if W is not None else len(w)
+    kinds = prismatic if prismatic is not None else (False,) * n
     if W is not None:
-        n = len(W)
-        return tuple(Parameter(s, W[k // n][k % n], "1/s", f"{field}[{k // n + 1}][{k % n + 1}]",
+        return tuple(Parameter(s, W[k // n][k % n], gain_unit(kinds, k // n, k % n),
+                               f"{field}[{k // n + 1}][{k % n + 1}]",
                                f"observer gain W[{k // n + 1}][{k % n + 1}] (full W, eq. 23-25)")
                      for k, s in enumerate(full_w_symbols(n)))
-    return tuple(Parameter(s, v, "1/s", f"{field}[{i}]", f"observer gain w{i} (eq. 25)")
+    return tuple(Parameter(s, v, gain_unit(kinds, i - 1, i - 1), f"{field}[{i}]", f"observer gain w{i} (eq. 25)")
                  for i, (s, v) in enumerate(zip(w_symbols(len(w)), w), 1))
 
 
-def controller_parameters(c: Controller) -> tuple[Parameter, ...]:
+def controller_parameters(c: Controller, prismatic: tuple[bool, ...] | None = None) -> tuple[Parameter, ...]:
     """T1, T2 (eq. 14), the observer gain (eq. 25; none here for w = "auto": the
     pipeline adds the synthesised one) and the momentum observer's K as parameters;
-    k1, k2 are expressions of T1, T2."""
+    k1, k2 are expressions of T1, T2. ``prismatic``: which joints are prismatic (W's units)."""
     out = [Parameter(T1_SYMBOL, c.T1, "s", "controller.T1", "minimum prediction time T1 (eq. 14)"),
            Parameter(T2_SYMBOL, c.T2, "s", "controller.T2", "maximum prediction time T2 (eq. 14)")]
     if not c.w_auto:
-        out += observer_parameters(c.w, c.W)
+        out += observer_parameters(c.w, c.W, prismatic=prismatic)
     return tuple(out) + momentum_parameters(c)
 
 
@@ -209,9 +246,10 @@ def gravity_parameter(g: Fraction) -> Parameter:
 
 
 def unit_direction(direction: tuple[Fraction, ...]) -> sp.ImmutableMatrix:
-    """The 3 x 1 unit vector of a direction given by 2 (planar: z = 0) or 3 exact numbers."""
+    """The 3 x 1 unit vector of a direction given by 2 (planar: z = 0) or 3 exact numbers (rational:
+    derive.model.rigid.rational_unit)."""
     v = sp.Matrix([sp.Rational(x.numerator, x.denominator) for x in direction] + [0] * (3 - len(direction)))
-    return sp.ImmutableMatrix(v / sp.sqrt((v.T * v)[0, 0]))
+    return rational_unit(v)
 
 
 @functools.lru_cache(maxsize=64)
@@ -301,7 +339,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
 
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
             "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None,
-            "sweep": None}
+            "sweep": None, "body_override": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None}
@@ -390,6 +428,12 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
         n = None if spatial is None else spatial.n
     else:
         n = None
+    if "body_override" in top:   # identified bodies (derive identify): URDF and DH arms
+        if kind == "planar":
+            r.add("body_override", "no [[body_override]] tables with [[link]] tables (a planar arm's identified "
+                  "values go into its [[link]] fields)", show(top["body_override"]))
+        elif spatial is not None:
+            spatial = apply_overrides(r, top["body_override"], spatial)
     joints = "[[link]]" if kind == "planar" else ("rows of dh.table" if kind == "dh" else "moving joints")
     motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=kind != "planar", joints=joints)
     if kind == "urdf" and spatial is not None and len(motors) == n:

@@ -28,7 +28,7 @@ payload_scale          mass factor of the last link's point masses            ar
 link_mass              factor on each link's mass (and inertia)               link
 coulomb_friction       factor on simulation.coulomb_friction                  joint
 viscous_friction       factor on simulation.viscous_friction                  joint
-disturbance            the input disturbance d [V] (eq. 12)                   joint
+disturbance            input disturbance d [V; N m if torque-driven] (eq. 12) joint
 torque_constant        factor on the motor's torque constant                  joint
 voltage_constant       factor on the motor's voltage constant                 joint
 resistance             factor on the motor's resistance                       joint

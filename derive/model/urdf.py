@@ -53,8 +53,8 @@ import sympy as sp
 
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
 from derive.model.fields import Reader, inline, show, to_fraction
-from derive.model.rigid import (axis_angle, body_from_com, empty_body, exact_angle, inertia_problem, merge, move,
-                                rational, rpy, tidy)
+from derive.model.rigid import (SNAP_TOLERANCE, angle_note, axis_angle, body_from_com, empty_body, exact_angle, inertia_problem, merge,
+                                move, rational, rational_unit, rpy, tidy)
 from derive.model.urdf_xml import parse_safely
 
 MOVING = {"revolute": JointType.REVOLUTE, "continuous": JointType.CONTINUOUS, "prismatic": JointType.PRISMATIC}
@@ -80,13 +80,24 @@ def _link_field(name: str, what: str = "") -> str:
     return f"urdf link {name!r}" + (f" {what}" if what else "")
 
 
-def _origin(o: Any) -> Transform:
-    """URDF <origin>: x_parent = R x_child + p (identity when absent)."""
+def _angles(values: Any, where: str, log: list[tuple[str, str, str]] | None) -> list[sp.Expr]:
+    """rpy angles, exact (:func:`derive.model.rigid.exact_angle`); what was snapped or kept near a
+    multiple of pi/2 goes to ``log`` as (kind, text, where)."""
+    out = []
+    for x in values or (0, 0, 0):
+        if log is not None and (note := angle_note(x)) is not None:
+            log.append((*note, where))
+        out.append(exact_angle(x))
+    return out
+
+
+def _origin(o: Any, where: str = "", log: list | None = None) -> Transform:
+    """URDF <origin>: x_parent = R x_child + p (identity when absent); R rational
+    (derive.model.rigid: snapped to k pi/2, else the nearest rational rotation)."""
     if o is None:
         return Transform.identity()
     xyz = [rational(x) for x in (o.xyz or (0, 0, 0))]
-    angles = [exact_angle(x) for x in (o.rpy or (0, 0, 0))]
-    return Transform(rpy(*angles), sp.ImmutableMatrix(xyz))
+    return Transform(rpy(*_angles(o.rpy, where, log)), sp.ImmutableMatrix(xyz))
 
 
 def _unit_axis(r: Reader, joint: Any, notes: list[str]) -> sp.ImmutableMatrix | None:
@@ -98,10 +109,12 @@ def _unit_axis(r: Reader, joint: Any, notes: list[str]) -> sp.ImmutableMatrix | 
               " ".join(repr(float(x)) for x in raw))
         return None
     if norm2 != 1:
-        unit = (v / sp.sqrt(norm2)).applyfunc(sp.radsimp)
+        unit = rational_unit(v)
+        exact = sp.sqrt(norm2).is_Rational
         notes.append(f"joint {joint.name!r}: axis ({' '.join(f'{float(x):g}' for x in raw)}) is not unit length; "
-                     f"normalised to ({', '.join(str(x) for x in unit)})")
-        return sp.ImmutableMatrix(unit)
+                     f"normalised to ({', '.join(f'{float(x):.17g}' for x in unit)})"
+                     + ("" if exact else " (the nearest rational unit vector, within 4e-18)"))
+        return unit
     return sp.ImmutableMatrix(v)
 
 
@@ -111,7 +124,7 @@ def _motion(axis: sp.Matrix, kind: str, value: sp.Expr) -> Transform:
     return Transform(axis_angle(axis, value), sp.ImmutableMatrix.zeros(3, 1))
 
 
-def _link_body(link: Any) -> Body:
+def _link_body(link: Any, log: list | None = None) -> Body:
     """A link's <inertial> in its own frame (empty when absent)."""
     inertial = link.inertial
     if inertial is None:
@@ -123,7 +136,7 @@ def _link_body(link: Any) -> Body:
     I = sp.Matrix(3, 3, lambda i, j: entries[_INERTIA_INDEX.index((min(i, j), max(i, j)))])
     o = inertial.origin
     com = sp.Matrix([rational(x) for x in (o.xyz if o is not None and o.xyz else (0, 0, 0))])
-    R = rpy(*[exact_angle(x) for x in (o.rpy if o is not None and o.rpy else (0, 0, 0))])
+    R = rpy(*_angles(o.rpy if o is not None else None, f"link {link.name!r} <inertial><origin rpy>", log))
     return body_from_com(m, com, I, R)
 
 
@@ -266,14 +279,15 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     members: list[list[str]] = []
     damping: list[Fraction] = []
     merged, held = [], []
+    log: list[tuple[str, str, str]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
     stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
     while stack:
         name, owner, T = stack.pop()
         if owner >= 0:
-            bodies[owner] = merge(bodies[owner], move(_link_body(link_map[name]), T))
+            bodies[owner] = merge(bodies[owner], move(_link_body(link_map[name], log), T))
             members[owner].append(name)
         for j in reversed(children.get(name, [])):
-            origin = T.compose(_origin(j.origin))
+            origin = T.compose(_origin(j.origin, f"joint {j.name!r} <origin rpy>", log))
             if j.type in MOVING and j.name in on_path and j.name not in locked:
                 axis = _unit_axis(r, j, notes)
                 if axis is None:
@@ -304,6 +318,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
         r.add("arm.tip_link", "a tip link with at least one revolute, continuous or prismatic joint between it "
               "and base_link", "a chain of fixed joints only")
         return None
+    notes += _angle_notes(log)
     if merged:
         notes.append(f"fixed joints merged into the body of the moving joint above them: {', '.join(merged)}")
     if held:
@@ -329,12 +344,31 @@ def _limits(j: Any) -> Limits:
     return Limits(f(lim.lower), f(lim.upper), f(lim.velocity), f(lim.effort))
 
 
+def _angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
+    """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept."""
+    out = []
+    for kind, head in (("snapped", f"angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 snapped to it "
+                                   "(exact 0 and +-1 in their rotations)"),
+                       ("kept", f"angles near a multiple of pi/2 but more than {SNAP_TOLERANCE:g} rad from it, kept "
+                                "as written (their rotations are the nearest rational rotations, within 4e-18; "
+                                "write the full double, e.g. 1.5707963267948966, if pi/2 is meant)")):
+        seen: dict[str, list[str]] = {}
+        for k, text, where in log:
+            if k == kind:
+                seen.setdefault(text, []).append(where)
+        if seen:
+            items = [f"{text} at {where[0]}" + (f" and {len(where) - 1} more" if len(where) > 1 else "")
+                     for text, where in seen.items()]
+            out.append(f"{head}: {'; '.join(items)}")
+    return out
+
+
 def _value(x: sp.Expr) -> Fraction:
-    """An exact body value as a Fraction (40 significant digits where it is irrational)."""
-    x = sp.nsimplify(x) if x.is_Float else x
-    if x.is_Rational:
-        return Fraction(int(x.p), int(x.q))
-    return Fraction(str(sp.N(x, 40)))
+    """An exact body value as a Fraction (rational: derive.model.rigid makes every rotation rational)."""
+    x = sp.sympify(x)
+    if not x.is_Rational:
+        raise ValueError(f"a body parameter is not rational: {x}")
+    return Fraction(int(x.p), int(x.q))
 
 
 def _parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint]

@@ -3,7 +3,7 @@ compiled C library through ctypes. Both are generated with runtime parameters
 (``--params runtime``), so the voltage limits can be changed per run.
 
 Both backends expose the same small interface, :class:`Controller`:
-``init(x)``, ``step(x, dt) -> u`` and ``state`` for one form ('mpc', 'npid' or
+``init(x, dt)``, ``step(x, dt) -> u`` and ``state`` for one form ('mpc', 'npid' or
 'dobc'), with x = theta, theta', yd, yd', yd'' concatenated (5 n floats). ``observer``:
 the observer step the controller was generated with (derive generate --observer).
 """
@@ -20,7 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from derive.codegen.files import generate_files
-from derive.codegen.forms import FORMS
+from derive.codegen.forms import FORMS, init_takes_dt
 from derive.codegen.emit import write_tree
 from derive.errors import DeriveError
 from derive.codegen.kernels import ParamsMode
@@ -41,8 +41,9 @@ class Controller(Protocol):
     form: str
     n: int
 
-    def init(self, x) -> None:
-        """Initialise the form's state from the first input (derived dhat(0) for DOBC)."""
+    def init(self, x, dt: float) -> None:
+        """Initialise the form's state from the first input (derived dhat(0) for DOBC; ``dt``, the
+        sample time of the steps, enters the implicit build's dhat(0): derive.codegen.forms.init_takes_dt)."""
 
     def step(self, x, dt: float) -> np.ndarray:
         """One sample: the applied voltages u (n)."""
@@ -53,8 +54,9 @@ class Controller(Protocol):
 
 
 class PythonController:
-    def __init__(self, module, form: str, u_max):
+    def __init__(self, module, form: str, u_max, observer: str = "explicit"):
         self.m, self.form, self.n = module, form, module.N
+        self._init_dt = form in FORMS and init_takes_dt(FORMS[form], observer)
         self.params = module.Params()
         self.params.u_max = list(u_max)
         self.s = {"npid": module.NpidState, "dobc": module.DobcState, "mom": module.MomState}.get(
@@ -65,9 +67,10 @@ class PythonController:
         n = self.n
         return self.m.Input(*(list(x[i * n:(i + 1) * n]) for i in range(5)))
 
-    def init(self, x) -> None:
+    def init(self, x, dt: float) -> None:
         if self.s is not None:
-            code = getattr(self.m, f"{self.form}_init")(self.params, self.s, self._inp(x))
+            code = getattr(self.m, f"{self.form}_init")(self.params, self.s, self._inp(x),
+                                                         *((dt,) if self._init_dt else ()))
             if code:
                 raise ControllerError(f"{self.form}_init returned {code}", code)
 
@@ -92,8 +95,10 @@ class PythonController:
 
 
 class CController:
-    def __init__(self, lib: ctypes.CDLL, arm: str, n: int, n_params: int, form: str, u_max, state_size: int):
+    def __init__(self, lib: ctypes.CDLL, arm: str, n: int, n_params: int, form: str, u_max, state_size: int,
+                 observer: str = "explicit"):
         self.lib, self.arm, self.n, self.form = lib, arm, n, form
+        self._init_dt = form in FORMS and init_takes_dt(FORMS[form], observer)
         real = ctypes.c_double
         self.params = (real * (n_params + n))()
         getattr(lib, f"{arm}_params_default")(self.params)
@@ -107,10 +112,10 @@ class CController:
     def _call(self, name: str, *args) -> int:
         return getattr(self.lib, f"{self.arm}_{name}")(self.params, *args)
 
-    def init(self, x) -> None:
+    def init(self, x, dt: float) -> None:
         self.x[:] = list(x)
         if self.form != "mpc":
-            code = self._call(f"{self.form}_init", self.s, self.x)
+            code = self._call(f"{self.form}_init", self.s, self.x, *((self.dt(dt),) if self._init_dt else ()))
             if code:
                 raise ControllerError(f"{self.form}_init returned {code}", code)
 
@@ -162,9 +167,10 @@ class Backend:
 
     def controller(self, form: str, u_max) -> Controller:
         if self.kind == "python":
-            return PythonController(self.module, form, u_max)
+            return PythonController(self.module, form, u_max, self.observer)
         size = 2 * self.d.n if form == "dobc" and self.observer == "implicit" else self.d.n
-        return CController(self.lib, self.d.arm.name, self.d.n, len(self.d.values), form, u_max, size)
+        return CController(self.lib, self.d.arm.name, self.d.n, len(self.d.values), form, u_max, size,
+                           self.observer)
 
     def close(self) -> None:
         self._tmp.cleanup()

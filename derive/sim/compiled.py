@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from derive.codegen.forms import FORMS
+from derive.codegen.forms import FORMS, init_takes_dt
 from derive.errors import DeriveError
 
 
@@ -36,6 +36,7 @@ class LoopForm:
     name: str
     state_type: str
     state_field: str
+    init_dt: bool = False   # its init takes dt (derive.codegen.forms.init_takes_dt)
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,8 @@ def loop_sources(d, observer: str = "explicit") -> dict[str, str]:
     v = arm_view(d, "double", ParamsMode.RUNTIME, observer=observer)
     out = {f"{a}.h": render("c/arm.h.jinja", v=v), f"{a}.c": render("c/arm.c.jinja", v=v),
            f"{a}_kernels.h": render("c/kernels.h.jinja", v=v), f"{a}_kernels.c": render("c/kernels.c.jinja", v=v)}
-    forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "")
+    forms = tuple(LoopForm(f.name, f.state.type if f.state else "", f.state.field if f.state else "",
+                           init_takes_dt(f, observer))
                   for f in FORMS.values())  # every form of the registry derive.codegen.forms
     out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
     return out
@@ -120,7 +122,7 @@ def load(b: LoopBuild) -> ctypes.CDLL:
     fn = getattr(lib, f"{b.arm}_sim_run")
     dp = ctypes.POINTER(ctypes.c_double)
     fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp, dp,
-                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
+                   dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
     fn.restype = ctypes.c_int
     _LOADED[b.key] = (tmp, lib)
     return lib
@@ -150,8 +152,9 @@ class RawRun:
 
 def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous, disturbance, u_clip, r: np.ndarray,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
-             substeps: int) -> RawRun:
-    """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample)."""
+             substeps: int, f0=None) -> RawRun:
+    """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample);
+    ``f0``: the reference filter's start (y_d, y_d'), None: at rest at 0."""
     if form not in b.forms:
         raise DeriveError(f"compiled simulation: controller form {form!r} is not in the registry "
                           f"derive.codegen.forms (known: {', '.join(b.forms)})")
@@ -168,6 +171,7 @@ def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous,
     keep = list(args)  # the arrays must outlive the call
     code = getattr(lib, f"{b.arm}_sim_run")(
         b.forms.index(form), steps, substeps, dt, dt / substeps, *map(_ptr, args), alpha, _ptr(f64(x0)),
+        _ptr(None if f0 is None else f64(f0)),
         _ptr(None if state0 is None else f64(state0)), *(_ptr(out[k]) for k in out), ctypes.byref(fail_step),
         _ptr(fail_input))
     del keep

@@ -39,8 +39,8 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def link_figure(traces: list[Trace], i: int) -> bytes:
-    """Link i: u [V], theta-dot [deg/s], theta and y_d [deg] (Figures 5-6)."""
+def link_figure(traces: list[Trace], i: int, unit: str = "V") -> bytes:
+    """Link i: u [V, or ``unit``: N m in torque mode], theta-dot [deg/s], theta and y_d [deg] (Figures 5-6)."""
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for tr in traces:
         color, ls = STYLE.get(tr.name, ("k", "-"))
@@ -50,7 +50,7 @@ def link_figure(traces: list[Trace], i: int) -> bytes:
         for ax, values in zip(axes, (tr.u[:, i], np.degrees(tr.dtheta[:, i]), np.degrees(tr.theta[:, i]))):
             _mark_failure(ax, tr, values, color)
     axes[2].plot(traces[0].t, np.degrees(traces[0].yd[:, i]), color="k", lw=0.8, ls="-.", label="y_d")
-    for ax, label in zip(axes, ("u [V]", "velocity [deg/s]", "position [deg]")):
+    for ax, label in zip(axes, (f"u [{unit}]", "velocity [deg/s]", "position [deg]")):
         ax.set_ylabel(label)
         ax.grid(True, lw=0.3)
     axes[0].legend(loc="upper right", fontsize=8)
@@ -62,14 +62,15 @@ def link_figure(traces: list[Trace], i: int) -> bytes:
 
 
 def error_figure(traces: list[Trace]) -> bytes:
-    """Tracking error y_d - theta of every controller, per link (Figures 7-8)."""
+    """Tracking error y_d - C theta of every controller, per output (Figures 7-8; a continuous joint's
+    wrapped to (-pi, pi], as the controllers take it)."""
     n = traces[0].theta.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n), sharex=True, squeeze=False)
     for i in range(n):
         ax = axes[i, 0]
         for tr in traces:
             color, ls = STYLE.get(tr.name, ("k", "-"))
-            e = np.degrees(tr.yd[:, i] - tr.theta[:, i])
+            e = np.degrees(tr.error[:, i])
             ax.plot(tr.t, e, color=color, ls=ls, lw=1, label=_label(tr))
             _mark_failure(ax, tr, e, color)
         ax.set_ylabel(f"e{i + 1} [deg]")

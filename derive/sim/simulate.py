@@ -10,7 +10,9 @@ Integrated with RK4 (``substeps`` per sample) under a zero-order hold on u.
 Reference (section 5.2): each link's y_d is the output of
 Gr(s) = 1 / (s^2 + 1.8 s + 1) driven by a sampled pulse train of the given
 amplitude, starting at the link's start time (before it the link holds 0);
-y_d' and y_d'' are the filter's states and its ODE, never differences.
+y_d' and y_d'' are the filter's states and its ODE, never differences. With
+reference_start = "measured" y_d starts at the initial pose C theta(0) and the
+pulse train is added to it (derive.sim.start).
 
 Two loops run the same experiment: :func:`run_compiled` (the whole loop in C,
 derive.sim.compiled: the default) and :func:`run_many` (the Python-stepped
@@ -27,11 +29,13 @@ import numpy as np
 
 from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
+from derive.control.wrap import wrap_numeric
 from derive.dynamics.program import lambdify
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings
 from derive.progress import progress
 from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
+from derive.sim.start import reference_offset
 
 CONTROLLERS = ("mpc", "dobc", "npid", "mom")   # derive simulate's default list
 VARIANTS = {"mpc": ("mpc", True), "dobc": ("dobc", True), "npid": ("npid", True),
@@ -73,6 +77,13 @@ class Trace:
     dhat: np.ndarray | None
     saturated: np.ndarray
     failure: Failure | None = None
+    e: np.ndarray | None = None   # the tracking error yd - C theta (k x n), wrapped as the controllers wrap it
+
+    @property
+    def error(self) -> np.ndarray:
+        """e = yd - C theta per sample (k x n): a continuous joint's output wrapped to (-pi, pi]
+        (derive.control.wrap), as the generated controllers compute it."""
+        return self.e if self.e is not None else self.yd - self.theta
 
 
 def pulse(t: float, start: float, period: float, amplitude: float) -> float:
@@ -146,12 +157,22 @@ def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inp
                    joint=joint, cause="; ".join(causes), inputs=tuple(float(v) for v in x))
 
 
+def tracking_error(d: Derivation, yd: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """e = yd - C theta (eq. 20) per sample (k x n), the outputs ``d.wrapped`` (moved by a continuous
+    joint) wrapped to (-pi, pi] as the generated controllers wrap them (derive.control.wrap)."""
+    e = yd - theta @ np.array(d.C.tolist(), dtype=float).T
+    for i in d.wrapped:
+        e[:, i] = wrap_numeric(e[:, i])
+    return e
+
+
 def _trace(name: str, s: SimSettings, plant: TruePlant | Plant, form: str, theta, dtheta, yd, u, dhat,
-           failure: Failure | None) -> Trace:
+           failure: Failure | None, d: Derivation) -> Trace:
     u_max = np.asarray(plant.u_max, dtype=float)
     t = np.arange(len(theta)) * s.sample_time
     sat = np.abs(u) >= u_max * (1 - 1e-12)
-    return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure)
+    return Trace(name, t, theta, dtheta, yd, u, dhat if form in ESTIMATES else None, sat.astype(bool), failure,
+                 tracking_error(d, yd, theta))
 
 
 ESTIMATES = ("dobc", "mom")   # the forms whose traces carry the disturbance estimate each step used
@@ -197,10 +218,11 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
     W = np.array(d.W.tolist(), dtype=float)
     Binv = 1.0 / np.array(d.B.tolist(), dtype=float).diagonal()
     mom_dhat = momentum_estimate(d) if any(form == "mom" for _, form, _ in runs) else None
-    r_all = pulses(s, n, steps)
+    y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
+    r_all = pulses(s, n, steps) + y0
     rows = len(runs)
     x = np.tile(np.concatenate([np.array(s.initial_theta, dtype=float), np.zeros(n)]), (rows, 1))  # at rest
-    f = np.zeros(2 * n)            # reference filter states (y, y') per link, the same for every run
+    f = np.concatenate([y0, np.zeros(n)])   # reference filter states (y, y') per link, the same for every run
     dq_filtered = np.zeros((rows, n))
     out = {k: np.zeros((rows, steps, n)) for k in ("theta", "dtheta", "yd", "u", "dhat")}
     ended = [steps] * rows
@@ -223,7 +245,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
             inp = np.concatenate([q_meas[row], dq_filtered[row], yd, dyd, ddyd])
             try:
                 if k == 0:
-                    ctl.init(inp)
+                    ctl.init(inp, dt)
                     if name == "dobc_zero_init":  # z(0) = B dhat(0) - W theta'(0) with dhat(0) = 0 (eq. 22)
                         ctl.state = list(-(W @ dq_filtered[row]))
                 if form == "dobc":  # the estimate this step uses (eq. 22)
@@ -245,7 +267,7 @@ def run_many(d: Derivation, backend, plant: Plant, s: SimSettings, names, show: 
             x, f = _rk4(plant, x, f, u, r, h)
     bar.close()
     return {name: _trace(name, s, plant, form, *(out[key][j, :ended[j]] for key in ("theta", "dtheta", "yd", "u",
-                                                                                    "dhat")), failures[j])
+                                                                                    "dhat")), failures[j], d)
             for j, (name, form, _) in enumerate(runs)}
 
 
@@ -263,14 +285,16 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     state0 = None
     if name == "dobc_zero_init":  # z(0) = -W theta'_measured(0), as the reference sets it
         state0 = -(W @ (x0[n:] + (ndq[0] if ndq is not None else 0.0)))
+    y0 = reference_offset(d, s)    # y_d(0): 0, or the initial pose (simulation.reference_start)
     raw = run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance, plant.u_max,
-                   pulses(s, n, steps), nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps)
+                   pulses(s, n, steps) + y0, nq, ndq, tacho_alpha(s), x0, state0, dt, s.substeps,
+                   f0=np.concatenate([y0, np.zeros(n)]))
     dhat = np.array(loop.Binv) * (raw.state + raw.filtered @ W.T) if form == "dobc" else None
     if form == "mom":
         measured = raw.theta + (nq[:len(raw.theta)] if nq is not None else 0.0)
         dhat = momentum_estimate(d)(measured, raw.filtered, raw.state)
     failure = diagnose(d, s, name, raw.fail_step, raw.code, raw.fail_input) if raw.code else None
-    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure)
+    return _trace(name, s, plant, form, raw.theta, raw.dtheta, raw.yd, raw.u, dhat, failure, d)
 
 
 def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarray, h: float):
@@ -290,12 +314,12 @@ def _rk4(plant: Plant, x: np.ndarray, f: np.ndarray, u: np.ndarray, r: np.ndarra
 
 
 def metrics(trace: Trace, s: SimSettings) -> list[dict[str, float | Undefined]]:
-    """Per link: rms_error, max_error, steady_state_error [rad], control_effort
-    (RMS voltage) [V], saturated_time [s]. steady_state_error is the mean |e| over
+    """Per link: rms_error, max_error, steady_state_error [rad] of e = yd - C theta (Trace.error),
+    control_effort (RMS of u) [V, or N m in torque mode], saturated_time [s]. steady_state_error is the mean |e| over
     the last 20% of each half-period of the pulse train (the settled parts); a figure
     that has no value (no settled sample in a short run, a non-finite trace) is an
     :class:`~derive.jsonio.Undefined` with the reason, never NaN."""
-    e = trace.yd - trace.theta
+    e = trace.error
     out = []
     half = s.pulse_period / 2
     end = float(trace.t[-1]) if len(trace.t) else 0.0

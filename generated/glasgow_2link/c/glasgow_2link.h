@@ -21,13 +21,11 @@
  *   The two forms are equal in continuous time when init uses the derived
  *   initial estimate dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)); discretised,
  *   they differ by O(dt).
- * Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
- * Sample time: largest sample time (sampled loop, zero-order hold, linearised at 64
- * operating points: 64 configurations within the joint limits, speeds at rest only (no
- * speed box: the arm file states no controller.max_joint_speed and its input no velocity
- * limits), 10 % margin; explicit observer step): MPC 602 ms, DOBC 11.8 ms, NPID 11.5 ms,
- * MOM 35.9 ms.
- * Voltage limits (0 = none): u is clipped to [-u_max, u_max]; the observer is
+ * Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
+ * Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
+ * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
+ * ms, MOM 36 ms.
+ * Voltage limits [V] (0 = none): u is clipped to [-u_max, u_max]; the observer is
  * fed the clipped u and the PID integrator of a clipped joint is held. Every
  * step reports the joints it clipped in *clipped (a glasgow_2link_mask; NULL: not
  * wanted): bit i set (1 << i) when joint i + 1 was clipped, 0 when none was.
@@ -63,8 +61,8 @@
  *   bv2 = 0.0 N m s/rad (link[2].viscous_friction)
  *   T1 = 0.0 s (controller.T1)
  *   T2 = 0.8333333333333334 s (controller.T2)
- *   w1 = 1.0 1/s (controller.w[1])
- *   w2 = 2.0 1/s (controller.w[2])
+ *   w1 = 1.0 N m s/rad (controller.w[1])
+ *   w2 = 2.0 N m s/rad (controller.w[2])
  *   kr1 = 50.0 1/s (controller.momentum_gain[1])
  *   kr2 = 50.0 1/s (controller.momentum_gain[2])
  */

@@ -6,7 +6,7 @@ Controllers of W.-H. Chen's nonlinear disturbance observer based control and
 nonlinear PID, the same functions and state handling as the generated C:
 mpc_step (eq. 15), dobc_init/dobc_step (eq. 21-27), dobc_estimate (eq. 22), npid_init/npid_step
 (eq. 34-38), gains (eq. 35-37). Discretisation: forward Euler for the integral
-of e (NPID) and the observer state z (DOBC); voltage limits (0 = none) clip u,
+of e (NPID) and the observer state z (DOBC); voltage limits [V] (0 = none) clip u,
 the observer is fed the clipped u and a clipped joint's integrator is held.
 mom_init/mom_step/mom_estimate: u = u* - dhat with the generalized-momentum
 observer, dhat = B^-1 r, r = K (J theta' - m), m stepped by forward Euler with the
@@ -14,12 +14,10 @@ applied u in every build (r' = K (B d - r) for any K > 0 and any speed; it does 
 reduce to a PID: derive.control.momentum).
 A step returns (code, u, clipped): clipped is the bitmask of the joints it
 clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
-Observer gain W = [[1, 0], [1, 2]] 1/s (chen structure, eq. 23-25).
-Sample time: largest sample time (sampled loop, zero-order hold, linearised at 64
-operating points: 64 configurations within the joint limits, speeds at rest only (no
-speed box: the arm file states no controller.max_joint_speed and its input no velocity
-limits), 10 % margin; explicit observer step): MPC 602 ms, DOBC 11.8 ms, NPID 11.5 ms,
-MOM 35.9 ms.
+Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
+Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
+linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
+ms, MOM 36 ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 with u and clipped None, and leaves its state untouched. An argument of the wrong
 shape or type (a vector that is not N real numbers, shape (N,); a dt that is not a
@@ -54,8 +52,8 @@ runtime, to change them):
     bv2 = 0.0 N m s/rad (link[2].viscous_friction)
     T1 = 0.0 s (controller.T1)
     T2 = 0.8333333333333334 s (controller.T2)
-    w1 = 1.0 1/s (controller.w[1])
-    w2 = 2.0 1/s (controller.w[2])
+    w1 = 1.0 N m s/rad (controller.w[1])
+    w2 = 2.0 N m s/rad (controller.w[2])
     kr1 = 50.0 1/s (controller.momentum_gain[1])
     kr2 = 50.0 1/s (controller.momentum_gain[2])
 """

@@ -1,0 +1,19 @@
+"""Identification: from a logged run of the arm to identified parameters (issue 22).
+
+Beside :mod:`derive.control` (imports flow model -> dynamics -> identify -> codegen -> cli):
+
+* :mod:`derive.identify.parameters`: the standard parameters (ten per body, rotor inertia,
+  viscous and Coulomb friction per joint);
+* :mod:`derive.identify.regressor`: Y of J theta'' + G = Y pi in the base parameters pi,
+  from the recursion J and the bias come from (derive generate --regressor emits it);
+* :mod:`derive.identify.excite`: the Fourier excitation trajectory (derive excite);
+* :mod:`derive.identify.log`, :mod:`derive.identify.signals`: reading, filtering and
+  differentiating a logged run;
+* :mod:`derive.identify.estimate`, :mod:`derive.identify.run`: weighted least squares and the
+  physically consistent (LMI) estimate (derive identify);
+* :mod:`derive.identify.armfile`, :mod:`derive.identify.report`: the identified arm file and
+  the report.
+"""
+
+CUTOFF = 10.0     # Hz: derive identify's default low-pass cut-off (derive.identify.signals)
+HARMONICS = 5     # derive excite's default harmonics per joint (derive.identify.excite)

@@ -48,7 +48,7 @@ def growth(d, backend, plant: Plant, form: str, dt: float, q0, dq0, steps: int, 
                 for row, ctl in enumerate(ctls):
                     inp = np.concatenate([x[row], ref])
                     if k == 0:
-                        ctl.init(inp)
+                        ctl.init(inp, dt)
                     u[row] = ctl.step(inp, dt)
             except DeriveError:
                 return np.inf

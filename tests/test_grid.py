@@ -21,9 +21,9 @@ CASES = Path(__file__).parent / "data" / "urdf" / "round3"
 def test_a_singular_pose_within_the_limits_is_one_error_naming_it():
     arm = derive.load_arm(CASES / "singular_at_pose.toml")
     with pytest.raises(SpecError, match=r"J\(theta\) singular within the joint limits of .*singular_at_pose.toml "
-                                        r"\(1 problem\):\n  - the inertia matrix J\(theta\) within the joint limits: "
-                                        r"expected positive definite .*got J singular at theta2 = -?pi/2 "
-                                        r"\(-?1.5708 rad\)"):
+                                        r"\(1 problem\):\n  - urdf joint 'j2' \(the inertia matrix J\(theta\) within "
+                                        r"the joint limits\): expected J positive definite .*got J singular at "
+                                        r"theta2 = -?pi/2 \(-?1.5708 rad\)"):
         derive.derive(arm)
 
 

@@ -248,12 +248,16 @@ def _angle(x: float) -> str:
 
 
 def _problem(d, q: np.ndarray, ratio: float) -> Problem:
+    """The problem, named by the fields of the joints whose coordinates J depends on (their limits
+    or bodies are what to change), the pose in their coordinates."""
     coords = joint_coordinates(d.arm, d.theta)
     free = set().union(*(x.free_symbols for x in d.J))
-    parts = [f"{c.symbol} = {_angle(float(q[c.index])) if c.angle else f'{float(q[c.index]):.5g} m'}"
-             for c in coords if c.symbol in free]
+    deps = [c for c in coords if c.symbol in free]
+    parts = [f"{c.symbol} = {_angle(float(q[c.index])) if c.angle else f'{float(q[c.index]):.5g} m'}" for c in deps]
     pose = ", ".join(parts) or "every configuration"
-    return Problem("the inertia matrix J(theta) within the joint limits",
-                   "positive definite at every configuration the joints can reach (eq. 15 and L = W J^-1 need "
+    joints = d.arm.chain.joints
+    field = ", ".join(joints[c.index].field for c in deps) if deps else joints[0].field
+    return Problem(f"{field} (the inertia matrix J(theta) within the joint limits)",
+                   "J positive definite at every configuration the joints can reach (eq. 15 and L = W J^-1 need "
                    "J^-1): limits that exclude a singular configuration, or inertia where a joint moves none",
                    f"J singular at {pose} (smallest / largest eigenvalue {max(ratio, 0.0):.2g})")

@@ -198,14 +198,16 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "# is a joint torque, eq. 21-22]: W = omega Jbar,",
         "# Jbar the mean of J over the joint ranges, so that the observer rates, the eigenvalues of W J^-1",
         f"# (eq. 24), spread only as far as J does: {_g(lo)} ... {_g(hi)} 1/s over the ranges (omega = {_g(gain.omega)} 1/s),",
-        f"# the smallest omega the observer certificate proves on max_joint_speed ({gain.decision.verdict.value}, "
-        f"{gain.decision.cells} cells)",
-        "# with a margin. Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",
+        ("# what puts the rates' geometric mean at 20 1/s, more than the observer certificate needs on" if gain.floor
+         else "# the smallest omega the observer certificate proves on max_joint_speed, with a margin"),
+        ("# max_joint_speed" if gain.floor else "#")
+        + f" (its decision: {gain.decision.verdict.value}, {gain.decision.cells} cells).",
+        "# Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",
         f"w = [{rows}]",
         "",
         "[simulation]",
         f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
-        + "# s: a round value at most half of each limit estimated from W and the momentum observer's",
+        + "# s: a round value at most 0.45 of each limit estimated from W and the momentum observer's",
         f"# gain: the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s (0.9 x: "
         f"{gain.observer_limit * 1e3:.3g} ms),",
         f"# the momentum observer's below 2 / K ({gain.momentum_limit * 1e3:.3g} ms); derive check and derive show "

@@ -59,7 +59,8 @@ class StarterGain:
 
     omega [1/s]; rates: the smallest and largest eigenvalue of W J^-1 over the samples [1/s];
     decision: the certificate's on the box at rate 0 (proved, or the last try's); sample_time [s]
-    and the estimated limits it was chosen from (observer [s], momentum [s]); seconds: time taken."""
+    and the estimated limits it was chosen from (observer [s], momentum [s]); seconds: time taken;
+    floor: omega was set by FLOOR, not raised for the certificate."""
 
     W: tuple[tuple[float, ...], ...]
     omega: float
@@ -69,6 +70,7 @@ class StarterGain:
     observer_limit: float
     momentum_limit: float
     seconds: float
+    floor: bool = False   # omega is FLOOR's (the rates' geometric mean), not the certificate's need
 
 
 def _round(x: float) -> float:
@@ -98,7 +100,9 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
     spread = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, Jbar, Li))   # eigenvalues of Jbar J^-1
     middle = math.sqrt(float(spread[:, 0].min()) * float(spread[:, -1].max()))
     sup = cert.speed_supremum(Jbar, box, 0.0, SAMPLES)
-    omega = max(FLOOR / middle, MARGIN / sup if sup > 0 and math.isfinite(sup) else 0.0)
+    need = MARGIN / sup if sup > 0 and math.isfinite(sup) else 0.0
+    omega = max(FLOOR / middle, need)
+    floor = omega > need
     for attempt in range(TRIES):
         if attempt:
             omega *= RAISE
@@ -114,4 +118,4 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
     dt = round_sample_time(min(MAX_SAMPLE_TIME, HEADROOM * min(observer, momentum)))
     return StarterGain(W=tuple(tuple(float(x) for x in row) for row in W), omega=omega, rates=rates, decision=dec,
                        sample_time=dt, observer_limit=observer, momentum_limit=momentum,
-                       seconds=time.perf_counter() - start)
+                       seconds=time.perf_counter() - start, floor=floor and omega == max(FLOOR / middle, need))

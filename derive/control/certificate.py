@@ -121,7 +121,24 @@ class ObserverCertificate:
         speeds = self.speeds(shape, v, exact)
         Jdot = np.einsum("vk,pkij->pvij", speeds[:, self.inner] if split is not None else speeds, md.dJ(q))
         N = S[None, None] - Jdot - 2.0 * beta * md.J(q)[:, None]
-        return N if split is None else N - split.majorant(speeds, beta)[None]
+        return N if split is None else N - split.majorant(speeds, beta, self.scale_for(W, shape))[None]
+
+    def scale_for(self, W: np.ndarray, shape) -> str:
+        """The split's majorant for this W (derive.control.split: "J", absolute values in J's scale, or
+        "I", in the identity's; both are sound): the one whose largest eigenvalue relative to
+        W + W^T on the box is smaller ("I" when W + W^T is not positive definite). A function of W
+        and the box only, so every decision on the same W (init's, derive check's) takes the same."""
+        if self.split is None:
+            return "J"
+        S = np.asarray(W, dtype=float) + np.asarray(W, dtype=float).T
+        try:
+            Li = np.linalg.inv(np.linalg.cholesky(S))
+        except np.linalg.LinAlgError:
+            return "I"
+        speeds = self.speeds(np.asarray(shape, dtype=float), 1.0)
+        top = {key: np.linalg.eigvalsh(np.einsum("ab,vbc,dc->vad", Li, self.split.majorant(speeds, 0.0, key), Li))
+               [:, -1].max() for key in ("J", "I")}
+        return min(top, key=lambda key: (top[key], key))
 
     def lowest(self, W, shape, v, beta, q, exact: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Smallest eigenvalue of N over the vertices at each point, and the worst vertex index."""
@@ -195,7 +212,8 @@ class ObserverCertificate:
         # positive definiteness is the same, an entrywise bound scales entry by entry, and a light
         # wrist's small eigenvalues are no longer measured against the base's large variation
         sc = np.outer(self.model.scale, self.model.scale)
-        offset = (split.majorant(all_speeds, beta) if split is not None else np.zeros((1, n, n))) * sc
+        offset = (split.majorant(all_speeds, beta, self.scale_for(W, shape)) if split is not None
+                  else np.zeros((1, n, n))) * sc
         S = (W + W.T) * sc
         tol = FLOAT_MARGIN * (1 + np.linalg.norm(S, 2))
         # T_jk bounds |d^2 N / dq_j dq_k| for every vertex: sum_i |theta'_i| |d3 J| + 2 beta |d2 J|

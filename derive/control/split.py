@@ -17,10 +17,12 @@ For a speed vertex theta'_v the rest enters N of (*) as M_R = 2 beta J_R + J_R';
         <= U(v) = sum_{f in P} 2 (2 beta + |f.theta'_v|) (|A_f|_T + |B_f|_T)
 
 for every theta, since c A <= |c| |A|_T for a number c and |A|_T = T |T^-1 A T^-T| T^T with |X| the
-matrix absolute value (the same eigenvectors, absolute eigenvalues), for any invertible T. T is
-J's own scale, T T^T = C_0 (J averaged over every angle): with T = I the absolute values mix the
-base's large terms into a light wrist's directions (the Panda's U was 2.3 times larger relative to
-J). So (*) holds wherever
+matrix absolute value (the same eigenvectors, absolute eigenvalues), for any invertible T. Two are
+kept: J's own scale, T T^T = C_0 (J averaged over every angle), and T = I. With T = I the absolute
+values mix the base's large terms into a light wrist's directions (the Panda's U is 2.3 times
+larger relative to J), which a W shaped like J (derive.control.starter) pays for; a W of small norm
+(derive tune) does better with T = I. Each decision takes the one that is smaller relative to its
+W + W^T (ObserverCertificate.scale_for). So (*) holds wherever
 
     N_A(theta_inner, v) = W + W^T - U(v) - J_A'(theta_inner, theta'_v) - 2 beta J_A(theta_inner)
 
@@ -71,6 +73,11 @@ def pair_parts(full: InertiaModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return rep, 2.0 * (absolute(coef[rep].real) + absolute(coef[rep].imag))
 
 
+def both_parts(full: InertiaModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`pair_parts` in J's scale ("J") and in the identity's ("I")."""
+    return {"J": pair_parts(full, metric(full)), "I": pair_parts(full, np.eye(full.n))}
+
+
 class SplitModel:
     """J_A over the inner angles (values, derivatives, bounds: the interface of InertiaModel) and
     the majorant U of the outer terms.
@@ -94,11 +101,13 @@ class SplitModel:
         keep = ~np.any(F[:, outer] != 0, axis=1) if outer else np.ones(F.shape[0], bool)
         self._C = coef[keep].reshape(-1, self.n * self.n)
         self._F = F[keep][:, list(self.inner)].astype(float)
-        # one of each pair f, -f among the rest (the first nonzero component positive), majorised in J's metric
-        rep, absolute = pair_parts(full, metric(full)) if parts is None else parts
+        # one of each pair f, -f among the rest (the first nonzero component positive), majorised in J's scale
+        # ("J") and in the identity's ("I")
+        parts = both_parts(full) if parts is None else parts
+        rep = parts["J"][0]
         rest = ~keep[rep]
         self._rest_F = F[rep[rest]].astype(float)                                   # P x m_full
-        self._rest_abs = absolute[rest]                                             # P x n x n
+        self._rest_abs = {key: absolute[rest] for key, (_, absolute) in parts.items()}   # P x n x n each
         norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))                       # Frobenius of every C_f
         self._all_F, self._all_norm = F.astype(float), norms
         self._keep = keep
@@ -163,19 +172,20 @@ class SplitModel:
         return self._derivative(q, 3).reshape(-1, m, m, m, self.n, self.n)
 
     # -- the outer terms ---------------------------------------------------------------------
-    def majorant(self, speeds: np.ndarray, beta: float) -> np.ndarray:
+    def majorant(self, speeds: np.ndarray, beta: float, scale: str = "J") -> np.ndarray:
         """U for each row of ``speeds`` (V x m_full, rad/s, the box's scale included; an outer
-        column holds the box's half-width, whatever the sign): V x n x n. The outer signs are
-        covered at once by |f.theta'| <= |f_inner.theta'_inner| + sum_outer |f_k| |theta'_k|, so
-        the vertices range over the inner speeds only. The transform's rounding on every
-        coefficient is added as a multiple of the identity."""
+        column holds the box's half-width, whatever the sign): V x n x n, the absolute values taken
+        in J's scale (``scale`` "J", T T^T = C_0) or the identity's ("I"; either is a majorant).
+        The outer signs are covered at once by |f.theta'| <= |f_inner.theta'_inner| + sum_outer
+        |f_k| |theta'_k|, so the vertices range over the inner speeds only. The transform's rounding
+        on every coefficient is added as a multiple of the identity."""
         outer = [k for k in range(self.full.m) if k not in self.inner]
         inner = list(self.inner)
 
         def weight(F: np.ndarray) -> np.ndarray:
             return np.abs(speeds[:, inner] @ F[:, inner].T) + np.abs(speeds[:, outer]) @ np.abs(F[:, outer]).T
 
-        U = np.einsum("vp,pab->vab", 2.0 * beta + weight(self._rest_F), self._rest_abs)
+        U = np.einsum("vp,pab->vab", 2.0 * beta + weight(self._rest_F), self._rest_abs[scale])
         slack = ROUNDING * ((2.0 * beta + weight(self._all_F)) @ self._all_norm)   # V
         return U + slack[:, None, None] * np.eye(self.n)[None]
 
@@ -187,7 +197,7 @@ def split_model(full: InertiaModel, shape: np.ndarray, size: int = MAX_INNER) ->
     tried (at most 35 for 7 angles)."""
     T = metric(full)
     Ti = np.linalg.inv(T)
-    parts = pair_parts(full, T)
+    parts = both_parts(full)
     speeds = np.array([[shape[c.index] for c in full.deps]])   # the outer half-widths; inner signs below
     size = min(size, full.m)
     best = None

@@ -193,13 +193,10 @@ def test_corpus_arm_goes_through_every_command(pipeline) -> None:
     """Every command exits 0, the C self-tests pass and the Python module checks out."""
     assert [c.command for c in pipeline.commands] == ["init", "show", "check", "generate", "selftest-c",
                                                       "selftest-python", "simulate", "fmu --plant"]
-    failed = {c.command: c.detail for c in pipeline.commands if not c.ok and c.command != "simulate"}
+    failed = {c.command: c.detail for c in pipeline.commands if not c.ok}
     assert not failed, failed
 
 
-@pytest.mark.xfail(strict=True, reason="the starter file's sample_time (2 ms) is above the sampled loop's limit "
-                   "for init's default w = 5 on this arm, so simulate refuses without --force: init's controller "
-                   "defaults are another part of issue 19; this test passes (and must lose this mark) once they land")
 def test_corpus_arm_simulates_with_the_starter_files_own_settings(pipeline) -> None:
     step = next(c for c in pipeline.commands if c.command == "simulate")
     assert step.ok, step.detail

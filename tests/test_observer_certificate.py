@@ -295,3 +295,83 @@ def test_synthesised_w_for_the_6_joint_ur5_is_proved_and_holds_at_10000_random_s
     low = np.linalg.eigvalsh(W + W.T - (Jd + Jd.transpose(0, 2, 1)) / 2)[:, 0].min()
     assert low > 0
     assert np.linalg.eigvalsh(-(Jd + Jd.transpose(0, 2, 1)) / 2)[:, 0].min() < 0   # W is needed: J' alone fails
+
+
+# -- issue 19 item 5: one-joint arms, prismatic coordinates; the bounds the decisions rest on ---------------------
+CASES = Path(__file__).parent / "data" / "urdf" / "round3"
+URDF = Path(__file__).parent / "data" / "urdf"
+
+
+@pytest.mark.parametrize("path", [Path(__file__).parent / "data" / "f6_small_arm.toml", CASES / "tool.toml"])
+def test_one_joint_arm_certificate_is_decided_exactly(path, capsys):
+    """J constant (one joint): J' = 0, so (*) is 2 w - 2 beta J > 0 at every speed; the rate is w / J exactly."""
+    d = derive.derive(derive.load_arm(path))
+    out = proofs_cert.check_certificate(d)
+    rate = float(d.W[0, 0] / d.J[0, 0])
+    assert out.status is Status.PROVED and "J does not depend on the joint coordinates" in out.detail
+    assert f"every rate beta < {rate:.4g} 1/s" in out.detail
+    assert check_cli.run(check_cli_args(path)) == 0
+    assert "observer-certificate" in capsys.readouterr().out
+
+
+def check_cli_args(path):
+    import argparse
+
+    return argparse.Namespace(arm=str(path), paper=False, report=None, json=None, strict=False)
+
+
+def test_one_joint_arm_certificate_refutes_a_stated_rate_above_w_over_j():
+    d = derive.derive(_arm_file(CASES / "tool.toml", observer_rate=50.0))
+    out = proofs_cert.check_certificate(d)
+    assert out.status is Status.REFUTED and "observer_rate = 50 1/s is not certified" in out.detail
+
+
+def _arm_file(path: Path, **controller) -> derive.Arm:
+    data = tomllib.loads(path.read_text())
+    data["controller"].update(controller)
+    return arm_from_dict(data, str(path), base_dir=path.parent)
+
+
+def test_tune_on_a_one_joint_arm_needs_a_rate_and_then_gives_about_beta_j(capsys):
+    from derive.cli import main
+
+    assert main(["tune", str(CASES / "tool.toml"), "--speed", "5"]) == 2
+    assert "there is no smallest W at rate 0; give a rate beta > 0" in capsys.readouterr().err
+    assert main(["tune", str(CASES / "tool.toml"), "--speed", "5", "--rate", "2"]) == 0
+    out = capsys.readouterr().out
+    J = float(derive.derive(derive.load_arm(CASES / "tool.toml")).J[0, 0])
+    w = float(out.split("w = [")[1].split("]")[0])
+    assert 2 * J < w <= 2 * J * 1.03 and "N m s/rad" in out and "certificate: proved" in out
+
+
+@pytest.mark.parametrize("name", ["polar", "synthetic"])
+def test_prismatic_coordinates_are_certified_over_their_travel(name):
+    """J depends on a prismatic coordinate (metres, over its limits): J's series is exact in powers of the travel,
+    the bounds hold at random states, and the certificate proves what the random states do not refute."""
+    path = CASES / "polar.toml" if name == "polar" else URDF / "synthetic.toml"
+    d = derive.derive(derive.load_arm(path))
+    model = cert.inertia_model(d)
+    assert any(not c.angle for c in model.deps) and model.fourier is None
+    rng = np.random.default_rng(3)
+    lo = np.array([s[0] for s in model.spans])
+    hi = np.array([s[1] for s in model.spans])
+    q = lo + (hi - lo) * rng.random((500, model.m))
+    d2 = np.abs(model.d2J(q)).max(axis=0)
+    assert np.all(d2 <= model.second + 1e-12) and np.max(d2 / np.maximum(model.second, 1e-300)) > 0.3
+    out = proofs_cert.check_certificate(d)
+    assert out.status is Status.PROVED
+    r = cert.report(d)
+    assert 0.9 * r.speed_sup <= r.speed <= r.speed_sup
+
+
+def test_fourth_derivative_bounds_hold_at_random_angles(paper):
+    """The second-order remainder of the branch and bound rests on |d^4 J| bounds from J's series."""
+    model = cert.inertia_model(derivation("planar_3link"))
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-np.pi, np.pi, (400, model.m))
+    h = 1e-4
+    for k in range(model.m):   # d^4 J / dq_k dq_i dq_j dq_l by central differences of d^3 J
+        step = h * np.eye(model.m)[k]
+        fourth = np.abs((model.d3J(q + step) - model.d3J(q - step)) / (2 * h)).max(axis=0)
+        assert np.all(fourth <= model.fourth[k] * (1 + 1e-6) + 1e-9)
+        assert np.max(fourth / np.maximum(model.fourth[k], 1e-300)) > 0.5   # and not wildly loose

@@ -62,6 +62,8 @@ CASES = {   # id: (edit of my3, field, a fragment of the rule, the value given a
     "voltage limit": ((("motor", 0, "voltage_limit"), 24000.0), "motor[1].voltage_limit", "at most 1000 V",
                       "24000 V"),
     "gravity": ((("arm", "gravity"), 981.0), "arm.gravity", "at most 20 m/s^2", "981 m/s^2"),
+    "speed box in deg/s": ((("controller", "max_joint_speed"), [180.0, 4.0, 5.0]), "controller.max_joint_speed[1]",
+                           "at most 50 rad/s", "180 rad/s"),
 }
 
 
@@ -128,3 +130,27 @@ def test_strict_is_exit_2_before_anything_for_every_command(tmp_path, monkeypatc
     err = capsys.readouterr().err
     assert err.startswith("derive: error: implausible arm description (--strict)") and "motor[1].rotor_inertia" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["my3.toml"]       # nothing written
+
+
+POLAR = ROOT / "tests" / "data" / "urdf" / "round3" / "polar.urdf"
+
+
+@pytest.mark.parametrize("old, new, field, rule, given", [
+    ('<limit lower="-3" upper="3" effort="50" velocity="3"/>', '<limit lower="-170" upper="170" effort="50" velocity="3"/>',
+     "urdf joint 'j1' <limit lower>", "degrees written as radians", "-170 rad"),
+    ('<limit lower="0.3" upper="0.6" effort="50" velocity="1"/>', '<limit lower="300" upper="600" effort="50" velocity="1"/>',
+     "urdf joint 'j2' <limit lower>", "millimetres written as metres", "300 m"),
+    ('<limit lower="-3" upper="3" effort="50" velocity="3"/>', '<limit lower="-3" upper="3" effort="50" velocity="180"/>',
+     "urdf joint 'j1' <limit velocity>", "deg/s or rpm written as rad/s", "180 rad/s"),
+    ('<limit lower="0.3" upper="0.6" effort="50" velocity="1"/>', '<limit lower="0.3" upper="0.6" effort="50" velocity="500"/>',
+     "urdf joint 'j2' <limit velocity>", "mm/s written as m/s", "500 m/s")])
+def test_joint_ranges_and_speeds_the_grids_cover_are_in_their_units(tmp_path, old, new, field, rule, given):
+    """The ranges the operating-point grids cover (derive.control.grid): a revolute range in degrees, a
+    prismatic travel in millimetres, a velocity limit in deg/s or mm/s."""
+    text = POLAR.read_text()
+    assert old in text
+    (tmp_path / "polar.urdf").write_text(text.replace(old, new))
+    data = tomllib.loads((POLAR.with_suffix(".toml")).read_text())
+    problems = plausibility(arm_from_dict(data, str(tmp_path / "polar.toml"), base_dir=tmp_path))
+    assert [p.field for p in problems][:1] == [field]
+    assert rule in problems[0].expected and problems[0].given == given

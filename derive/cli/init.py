@@ -8,11 +8,21 @@ From a URDF to generated C in two commands::
 The arm file takes its chain from the URDF (base link: the root, or --base;
 tip link: the unique deepest leaf, or --tip), torque actuation (u is the motor
 torque, B = diag(gear ratio)), gear ratio 1 and no rotor inertia, gravity 9.81
-m/s^2 along -z of the base, and the default controller settings; every value
-the URDF does not give is written as an assumption with a comment, the joint
-limits as comments, the chain's notes (merged, locked, normalised) as
-comments. It never overwrites a file; the URDF path in it is relative to the
-arm file.
+m/s^2 along -z of the base; every value the URDF does not give is written as an
+assumption with a comment, the joint limits as comments, the chain's notes
+(merged, locked, normalised) as comments. It works as written:
+
+* ``max_joint_speed``: the URDF's velocity limits (DEFAULT_SPEED rad/s, an
+  assumption noted, where it gives none): the box the observer certificate and
+  the sample-time limits cover;
+* ``torque_limit``: each joint's effort limit (u is clipped to it);
+* ``w``: W = omega Jbar for this arm (derive.control.starter), certified on the
+  box by the same decision ``derive check`` makes;
+* ``[simulation] sample_time``: a round value at most 0.45 of the limits
+  estimated from W's largest observer rate and the momentum observer's gain.
+
+It never overwrites a file (checked before the derivation); the URDF path in
+it is relative to the arm file.
 """
 from __future__ import annotations
 
@@ -26,7 +36,9 @@ from pathlib import Path
 from derive.errors import DeriveError, SpecError
 
 T2_DEFAULT = "0.2"
-W_DEFAULT = "5.0"
+DEFAULT_SPEED = 2.0          # rad/s: the speed box of a joint whose URDF gives no velocity limit (assumption)
+DEFAULT_TRAVEL_SPEED = 0.5   # m/s: the same for a prismatic joint
+DIGITS = 4                   # significant digits of W as written (derive.control.starter.DIGITS)
 
 
 def add_arguments(parser) -> None:
@@ -107,11 +119,31 @@ def _limits_comment(joint) -> str:
     return "; ".join(parts) if parts else "no limits in the URDF"
 
 
+def speed_box(chain) -> tuple[tuple[float, ...], tuple[bool, ...]]:
+    """The speed box a starter file states: each joint's URDF velocity limit (as written, 6
+    significant digits), else DEFAULT_SPEED (rad/s; DEFAULT_TRAVEL_SPEED m/s for a prismatic
+    joint), with whether it was assumed."""
+    values, assumed = [], []
+    for joint in chain.joints:
+        v = joint.limits.velocity
+        given = v is not None and v > 0
+        values.append(float(f"{float(v):g}") if given else (DEFAULT_SPEED if joint.type.rotates else DEFAULT_TRAVEL_SPEED))
+        assumed.append(not given)
+    return tuple(values), tuple(assumed)
+
+
+def _g(x: float) -> str:
+    return f"{x:.{DIGITS}g}"
+
+
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
-                 repaired: tuple[str, ...] = ()) -> str:
-    """The arm file for a chain read from a URDF (see the module docstring); ``repaired``:
-    the links whose inertia ``derive init --repair-inertia`` repaired."""
+                 repaired: tuple[str, ...] = (), gain=None) -> str:
+    """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
+    links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
+    derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
+    placeholder, for reading the chain back)."""
     n = chain.n
+    box, assumed = speed_box(chain)
     lines = [
         f"# Arm file written by `derive init` from {urdf_name}. Values the URDF does not give are",
         "# assumptions, marked as such: check them against your hardware. Then: derive generate <this file>",
@@ -134,29 +166,87 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
     lines += [f"#   {note}" for note in chain.notes] or ["#   nothing to note"]
     for i, (joint, bv) in enumerate(zip(chain.joints, damping), 1):
         effort = joint.limits.effort
+        unit = "N m" if joint.type.rotates else "N"
         lines += [
             "",
             f"[[motor]]  # joint {i}: {joint.name!r} ({joint.type.value}; {_limits_comment(joint)})",
             "gear_ratio = 1.0                # assumption: u is the joint torque",
             "rotor_inertia = 0.0             # kg m^2, assumption: no reflected rotor inertia",
-            f"# torque_limit = {float(effort):g}" + " " * max(1, 14 - len(f"{float(effort):g}"))
-            + "# N m: the URDF's effort limit; uncomment to clip u" if effort is not None
-            else "# torque_limit = 10.0          # N m: uncomment to clip u (the URDF gives no effort limit)",
+            f"torque_limit = {float(effort):g}" + " " * max(1, 16 - len(f"{float(effort):g}"))
+            + f"# {unit}: the URDF's effort limit; u is clipped to it" if effort is not None and effort > 0
+            else f"# torque_limit = 10.0          # {unit}: uncomment to clip u (the URDF gives no effort limit)",
             f"# viscous_friction = {float(bv):g}" + " " * max(1, 10 - len(f"{float(bv):g}"))
-            + "# N m s/rad; default: the URDF's <dynamics damping>",
+            + f"# {unit} s/{'rad' if joint.type.rotates else 'm'}; default: the URDF's <dynamics damping>",
         ]
-    w = ", ".join([W_DEFAULT] * n)
+    speeds = ", ".join(f"{v:g}" for v in box)
+    guessed = [str(i) for i, a in enumerate(assumed, 1) if a]
+    if guessed:
+        source = (f"the URDF's velocity limits; joint{'s' if len(guessed) > 1 else ''} {', '.join(guessed)}: "
+                  f"assumption, {DEFAULT_SPEED:g} rad/s ({DEFAULT_TRAVEL_SPEED:g} m/s if prismatic), the URDF "
+                  "gives no velocity limit")
+    else:
+        source = "the URDF's velocity limits"
     lines += [
         "",
         "[controller]",
         "T1 = 0.0                        # s, minimum prediction time (eq. 14)",
         f"T2 = {T2_DEFAULT}                        # s, assumption: maximum prediction time (eq. 14); "
         "shorter is stiffer",
-        f"w = [{w}]  # 1/s, assumption: observer gains (eq. 25); derive check certifies them on "
-        "max_joint_speed, in any order; w = \"auto\" chooses them",
+        f"max_joint_speed = [{speeds}]  # rad/s (m/s prismatic): {source}; derive check certifies the "
+        "observer on this box, and the sample-time limits cover it",
+    ]
+    if gain is None:
+        lines.append(f"w = [{', '.join(['1.0'] * n)}]")
+        return "\n".join(lines) + "\n"
+    lo, hi = gain.rates
+    rows = ",\n     ".join("[" + ", ".join(_g(x) for x in row) + "]" for row in gain.W)
+    lines += [
+        "# The observer gain W (eq. 25; a full n x n W) [N m s/rad, N s/m on a prismatic joint's row: p = W theta'",
+        "# is a joint torque, eq. 21-22]: W = omega Jbar,",
+        "# Jbar the mean of J over the joint ranges, so that the observer rates, the eigenvalues of W J^-1",
+        f"# (eq. 24), spread only as far as J does: {_g(lo)} ... {_g(hi)} 1/s over the ranges (omega = {_g(gain.omega)} 1/s),",
+        ("# what puts the rates' geometric mean at 20 1/s, more than the observer certificate needs on" if gain.floor
+         else "# the smallest omega the observer certificate proves on max_joint_speed, with a margin"),
+        ("# max_joint_speed" if gain.floor else "#")
+        + f" (its decision: {gain.decision.verdict.value}, {gain.decision.cells} cells).",
+        "# Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",
+        f"w = [{rows}]",
+        "",
+        "[simulation]",
+        f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
+        + "# s: a round value at most 0.45 of each limit estimated from W and the momentum observer's",
+        f"# gain: the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s (0.9 x: "
+        f"{gain.observer_limit * 1e3:.3g} ms),",
+        f"# the momentum observer's below 2 / K ({gain.momentum_limit * 1e3:.3g} ms); derive check and derive show "
+        "print each",
+        "# form's limit over the speed box (with --observer implicit the DOBC and NPID limits are far larger).",
         "",
     ]
     return "\n".join(lines)
+
+
+def choose_gain(draft: str, out: Path, chain):
+    """The starter W and sample time (derive.control.starter) for the arm of the ``draft`` text,
+    read as it will be written at ``out``."""
+    import tomllib
+
+    from derive.control.inertia import joint_coordinates
+    from derive.control.starter import starter_gain
+    from derive.dynamics.equations import derive_dynamics
+    from derive.model.spec import arm_from_dict
+
+    arm = arm_from_dict(tomllib.loads(draft), str(out), base_dir=out.resolve().parent)
+    dyn = derive_dynamics(arm)
+    model_J = dyn.J.xreplace(dict(dyn.values))
+    from derive.control.inertia import InertiaModel
+
+    model = InertiaModel(model_J, joint_coordinates(arm, dyn.sym.theta))
+    if model.unbounded:
+        names = ", ".join(repr(chain.joints[c.index].name) for c in model.unbounded)
+        raise DeriveError(f"joint {names}: expected a prismatic joint with <limit lower upper> (the observer "
+                          "certificate and the sample-time analysis range over its travel), got none")
+    box, _ = speed_box(chain)
+    return starter_gain(model, box)
 
 
 def _write_new(path: Path, text: str) -> None:
@@ -217,9 +307,13 @@ def run(args) -> int:
     if (problem := unmoved_inertia(found.chain, [sp.Integer(0)] * found.chain.n, values)) is not None:
         raise SpecError(str(urdf), [problem])   # the starter file (no rotor inertia) would not load
     out = Path(args.out) if args.out else urdf.with_suffix(".toml")
+    if out.exists() or out.is_symlink():   # before the minutes the derivation may take
+        _write_new(out, "")
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
-    text = starter_text(rel, urdf.name, _name(robot.name or urdf.stem, args.name), base, tip, found.chain,
-                        found.damping, found.repaired)
+    name = _name(robot.name or urdf.stem, args.name)
+    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired)
+    gain = choose_gain(draft, out, found.chain)
+    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain)
     _write_new(out, text)
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)

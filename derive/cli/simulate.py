@@ -335,7 +335,8 @@ def run(args) -> int:
                         args.observer)
         if slow:
             raise DeriveError(f"simulation.sample_time of {arm.name}: " + "; ".join(slow)
-                              + ": the controller would diverge; lower sample_time, or pass --force")
+                              + ": the controller would diverge; lower sample_time below the limits named, use "
+                              "--observer implicit where it allows the sample time, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration,
                                     observer=args.observer, plant=args.plant, friction=args.mujoco_friction,

@@ -40,6 +40,16 @@ def _speeds(text: str, n: int) -> tuple[float, ...]:
     return tuple(values)
 
 
+def gain_unit(arm) -> str:
+    """W's unit: p = W theta' is a joint torque whatever drives the joint (eq. 21 adds it to
+    G - B u, and B dhat = z + p, eq. 22), so W is N m s/rad (N s/m on a prismatic joint's row):
+    kg m^2/s, J's unit over time, and W J^-1 is a rate [1/s]."""
+    kinds = {j.type.rotates for j in arm.chain.joints}
+    if kinds == {True}:
+        return "N m s/rad"
+    return "N s/m" if kinds == {False} else "N m s/rad (N s/m on a prismatic joint's row)"
+
+
 def run(args: argparse.Namespace) -> int:
     from derive.control.certificate import inertia_model
     from derive.control.pipeline import derive
@@ -70,16 +80,17 @@ def run(args: argparse.Namespace) -> int:
         line = "w = [" + ", ".join(f"{rows[j][j]:g}" for j in range(arm.n)) + "]"
     else:
         line = "w = [" + ", ".join("[" + ", ".join(f"{x:g}" for x in row) + "]" for row in rows) + "]"
+    unit = gain_unit(arm)
     out = [f"derive tune {arm.name}: box |theta'| <= [{', '.join(f'{v:g}' for v in box)}] rad/s, rate {rate:g} 1/s, "
            f"{structure} structure",
-           f"W = {rows} 1/s, ||W||_2 = {syn.norm:.6g}",
+           f"W = {rows} {unit}, ||W||_2 = {syn.norm:.6g}",
            f"certificate: {syn.decision.verdict.value} ({syn.decision.cells} cells; program headroom {syn.headroom:g}, "
            f"{syn.rounds} solves, {syn.samples} constraints, {syn.seconds:.1f} s)",
            f"[controller] {line}"]
     sys.stdout.write("\n".join(out) + "\n")
     if args.json is not None:
         doc = {"arm": arm.name, "box_rad_per_s": list(box), "rate_per_s": rate, "structure": structure,
-               "W": rows, "norm": syn.norm, "certificate": syn.decision.verdict.value, "cells": syn.decision.cells,
+               "W": rows, "W_unit": unit, "norm": syn.norm, "certificate": syn.decision.verdict.value, "cells": syn.decision.cells,
                "headroom": syn.headroom, "seconds": round(syn.seconds, 3)}
         write_text(args.json, jsonio.dumps(doc, sort_keys=False))
     return 0 if syn.decision.verdict.value == "proved" else 1

@@ -22,31 +22,58 @@ from sympy.polys.rings import ring
 
 from derive.dynamics.dag import Memo
 from derive.dynamics.sx import to_sx
-from derive.dynamics.trigpoly import TrigRing, constant_angles
+from derive.dynamics.program import postorder
+from derive.dynamics.trigpoly import constant_angles
 
 FULL_TURN = 2.0 * math.pi
 ROUNDING = 1e-12   # relative rounding of the discrete Fourier transform's coefficients
 
 
-def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of |d^2 J/dq_j dq_k| and |d^3 J/dq_i dq_j dq_k| (m x m x n x n, m x m x m x n x n)
-    valid for every q, from J's Fourier coefficients C_f (coef: K x n x n) at integer
-    frequencies f (F: K x m): sum_f |C_f| |f_j f_k| and sum_f |C_f| |f_i f_j f_k|, each |C_f|
-    inflated by ROUNDING times the sum of all of them (the transform's rounding)."""
+def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray, polynomial=None, half=None,
+                               fourth: bool = False) -> tuple[np.ndarray, ...]:
+    """Bounds of |d^2 J/dq_j dq_k| and |d^3 J/dq_i dq_j dq_k| (m x m x n x n, m x m x m x n x n;
+    with ``fourth`` also |d^4 J|, m x m x m x m x n x n) valid for every q, from J's coefficients
+    C_f (coef: K x n x n) of the terms exp(i f.q) at integer frequencies f (F: K x m):
+    sum_f |C_f| |f_j f_k|, sum_f |C_f| |f_i f_j f_k|, ..., each |C_f| inflated by ROUNDING times the
+    sum of all of them (the transform's rounding).
+
+    ``polynomial[k]`` (m booleans): coordinate k is a length (a prismatic joint), and its column
+    of F holds the power e of t^e, t = (q_k - mid_k) / half[k] in [-1, 1] over its span: the o-th
+    derivative of t^e is at most e! / (e - o)! / half[k]^o there (0 for o > e) and |t| <= 1.
+    One matrix product over the K terms for every index tuple at once."""
     m, n = F.shape[1], coef.shape[1]
-    mag = np.abs(coef)
+    orders = (2, 3, 4) if fourth else (2, 3)
+    out = tuple(np.zeros((m,) * o + (n, n)) for o in orders)
+    if m == 0:
+        return out
+    mag = np.abs(coef).reshape(coef.shape[0], n * n)
     mag = mag + (ROUNDING * mag.sum(axis=0, keepdims=True) + 1e-300)
     absF = np.abs(F).astype(float)
-    second, third = np.zeros((m, m, n, n)), np.zeros((m, m, m, n, n))
-    for j in range(m):
-        for k in range(j, m):
-            w2 = absF[:, j] * absF[:, k]
-            second[j, k] = second[k, j] = np.tensordot(w2, mag, axes=(0, 0))
-            for i in range(k, m):
-                t = np.tensordot(w2 * absF[:, i], mag, axes=(0, 0))
-                for a_, b_, c_ in set(itertools.permutations((j, k, i))):
-                    third[a_, b_, c_] = t
-    return second, third
+    poly = [False] * m if polynomial is None else list(polynomial)
+
+    def factor(k: int, order: int) -> np.ndarray:
+        """The bound of the order-th derivative in coordinate k, per term (K)."""
+        if not poly[k]:
+            return absF[:, k] ** order
+        e = absF[:, k]
+        falling = np.ones_like(e)
+        for r in range(order):
+            falling = falling * np.maximum(e - r, 0.0)
+        return falling / float(half[k]) ** order
+
+    def weight(axes: tuple[int, ...]) -> np.ndarray:
+        w = np.ones(F.shape[0])
+        for k in set(axes):
+            w = w * factor(k, axes.count(k))
+        return w
+
+    tuples = [t for o in orders for t in itertools.combinations_with_replacement(range(m), o)]
+    sums = (np.array([weight(t) for t in tuples]) @ mag).reshape(-1, n, n)
+    for t, value in zip(tuples, sums):
+        target = out[orders.index(len(t))]
+        for perm in set(itertools.permutations(t)):
+            target[perm] = value
+    return out
 
 
 @dataclass(frozen=True)
@@ -71,7 +98,8 @@ class Coordinate:
 def joint_coordinates(arm, theta: tuple[sp.Symbol, ...]) -> tuple[Coordinate, ...]:
     """The coordinates of an arm's joints (symbols ``theta``) with their kind and limits
     (planar arm files: revolute joints without limits; a chain's joints with the limits its
-    input states: a revolute joint's range, a prismatic joint's travel)."""
+    input states: a revolute joint's range, a prismatic joint's travel; a range of zero width,
+    lower >= upper, counts as none)."""
     chain = getattr(arm, "chain", None)
     out = []
     for i, q in enumerate(theta):
@@ -82,6 +110,8 @@ def joint_coordinates(arm, theta: tuple[sp.Symbol, ...]) -> tuple[Coordinate, ..
             angle = j.type.rotates
             if getattr(j.type, "value", "") == "revolute" or not angle:
                 lower, upper = j.limits.lower, j.limits.upper
+                if lower is not None and upper is not None and lower >= upper:
+                    lower = upper = None   # a zero-width range (some URDFs write 0, 0 for none): no range
         out.append(Coordinate(i, q, angle, None if lower is None else float(lower),
                               None if upper is None else float(upper)))
     return tuple(out)
@@ -102,7 +132,8 @@ class InertiaModel:
     limits span a turn or more: J repeats there); ``periodic[k]``: whether span k is that whole
     turn. J, dJ/dq_k and d^2 J/dq_j dq_k evaluate on batches of points; ``second[j][k]`` and
     ``third[i][j][k]`` are n x n matrices of upper bounds of |d^2 J/dq_j dq_k| and
-    |d^3 J/dq_i dq_j dq_k| valid for every q in the spans.
+    |d^3 J/dq_i dq_j dq_k| valid for every q in the spans; ``scale``: 1 / sqrt(J_ii) at the middle
+    of the spans (n), the diagonal scale the certificate decides in.
     """
 
     def __init__(self, J: sp.Matrix, coords: tuple[Coordinate, ...]) -> None:
@@ -118,15 +149,25 @@ class InertiaModel:
         self.spans = [c.span for c in self.deps]
         self.periodic = [False] * m
         self.fourier: tuple[np.ndarray, np.ndarray] | None = None   # (C_f: K x n x n, f: K x m)
+        self._series = None   # (coefficients, frequencies or powers, polynomial flags, half-widths)
+        self._fourth: np.ndarray | None = None
+        self.scale = np.ones(n)   # D^-1: 1 / sqrt of J's diagonal at the middle of the spans (the certificate's scale)
         if self.unbounded:
             return
-        trig = self._trig_polys(J, syms) if all(c.angle for c in self.deps) else None
-        if trig is not None:
+        middle = np.array([[(lo + hi) / 2 for lo, hi in self.spans]]).reshape(1, m)
+        diag = np.diag(self.J(middle)[0])
+        if np.all(np.isfinite(diag)) and np.all(diag > 0):
+            self.scale = 1.0 / np.sqrt(diag)
+        if m == 0:   # J constant (one joint, or joints that move no inertia's shape): its own mean, no derivatives
+            self.fourier = (self.J(np.zeros((1, 0))).astype(complex), np.zeros((1, 0), dtype=int))
+            return
+        degrees = self._degrees(J)
+        if degrees is not None:
             for k, c in enumerate(self.deps):
                 lo, hi = c.span
-                if hi - lo >= FULL_TURN or (c.lower is None and c.upper is None):
+                if c.angle and (hi - lo >= FULL_TURN or (c.lower is None and c.upper is None)):
                     self.spans[k], self.periodic[k] = (-math.pi, math.pi), True
-            self._fourier_bounds(trig)
+            self._series_bounds(degrees)
         else:
             self._coefficient_bounds(J)
 
@@ -149,6 +190,7 @@ class InertiaModel:
         self._fun = {"J": ca.Function("J", [x], [v], opts), "dJ": ca.Function("dJ", [x], [ca.vec(d1)], opts),
                      "d2J": ca.Function("d2J", [x], [ca.vec(d2)], opts)}
         self._maps: dict = {}
+        self._x, self._d2 = x, d2
 
     def _eval(self, name: str, q: np.ndarray) -> np.ndarray:
         """Function ``name`` at the rows of q (N x m): N x (its output size), in batches of a
@@ -175,51 +217,103 @@ class InertiaModel:
 
     def dJ(self, q: np.ndarray) -> np.ndarray:
         """dJ/dq_k at points q: N x m x n x n."""
-        return self._eval("dJ", q).reshape(-1, self.m, self.n, self.n)
+        return self._eval("dJ", q).reshape(q.shape[0], self.m, self.n, self.n)
 
     def d2J(self, q: np.ndarray) -> np.ndarray:
         """d^2 J/dq_j dq_k at points q: N x m x m x n x n."""
-        return self._eval("d2J", q).reshape(-1, self.m, self.m, self.n, self.n)
+        return self._eval("d2J", q).reshape(q.shape[0], self.m, self.m, self.n, self.n)
+
+    def d3J(self, q: np.ndarray) -> np.ndarray:
+        """d^3 J/dq_i dq_j dq_k at points q: N x m x m x m x n x n (its CasADi function made on first use)."""
+        if "d3J" not in self._fun:
+            x = self._x
+            self._fun["d3J"] = ca.Function("d3J", [x], [ca.vec(ca.jacobian(ca.vec(self._d2), x))], {"cse": True})
+        m, n = self.m, self.n
+        return self._eval("d3J", q).reshape(q.shape[0], m, m, m, n, n)
 
     # -- bounds ------------------------------------------------------------------------------
-    def _trig_polys(self, J: sp.Matrix, syms: list[sp.Symbol]):
-        """J's entries as polynomials in cos, sin of the angles (TrigRing, reduced), or None when
-        J is not one (a number that is not rational, another function)."""
-        n = self.n
-        exprs = [sp.sympify(J[i, j]) for i in range(n) for j in range(i, n)]
-        try:
-            ring_ = TrigRing(syms, (), constant_angles(exprs))
-            return ring_, ring_.convert(exprs)
-        except ValueError:
+    def _degrees(self, J: sp.Matrix) -> list[int] | None:
+        """An upper bound of J's degree in each dep (m): in cos, sin of an angle (a trigonometric
+        polynomial of that degree), in a prismatic coordinate (a polynomial), read off J's
+        expression graph (a sum takes the largest, a product adds, a power multiplies; sin, cos of
+        k q + c count |k|), each distinct subexpression once. An upper bound is all the series
+        needs (its higher coefficients are then 0, each exact); a serial chain's J has degree 2
+        in every coordinate, and the graph of the recursive dynamics gives 2. None when J is not
+        such a polynomial (an angle outside sin, cos; a coordinate under another function)."""
+        deps = [c.symbol for c in self.deps]
+        angle = {c.symbol: c.angle for c in self.deps}
+        zero = (0,) * len(deps)
+        memo: dict = {}
+        for e in postorder([sp.sympify(x) for x in J]):
+            if not (e.free_symbols & set(deps)):
+                memo[e] = zero
+            elif e.is_Symbol:
+                memo[e] = None if angle[e] else tuple(int(q == e) for q in deps)
+            elif isinstance(e, (sp.sin, sp.cos)):
+                coeffs = [sp.sympify(e.args[0]).coeff(q) for q in deps]
+                rest = sp.expand(e.args[0] - sum(c * q for c, q in zip(coeffs, deps)))
+                ok = all(c.is_Integer and (c == 0 or angle[q]) for c, q in zip(coeffs, deps))
+                memo[e] = tuple(abs(int(c)) for c in coeffs) if ok and not (rest.free_symbols & set(deps)) else None
+            elif any(memo[a] is None for a in e.args):
+                memo[e] = None
+            elif e.is_Add:
+                memo[e] = tuple(max(memo[a][k] for a in e.args) for k in range(len(deps)))
+            elif e.is_Mul:
+                memo[e] = tuple(sum(memo[a][k] for a in e.args) for k in range(len(deps)))
+            elif e.is_Pow and e.exp.is_Integer and e.exp >= 0:
+                memo[e] = tuple(int(e.exp) * d for d in memo[e.base])
+            else:
+                memo[e] = None
+        degs = [memo[sp.sympify(x)] for x in J]
+        if any(d is None for d in degs):
             return None
+        return [max(d[k] for d in degs) for k in range(len(deps))]
 
-    def _fourier_bounds(self, trig) -> None:
-        """Bounds of the 2nd and 3rd derivatives from J's Fourier coefficients (every dep an angle).
+    def _series_bounds(self, deg: list[int]) -> None:
+        """Bounds of the 2nd and 3rd derivatives from J's exact series in its coordinates.
 
-        J is a trigonometric polynomial of degree d_k in angle k (d_k: the largest total degree
-        in cos, sin of that angle in the reduced polynomials, exact), so J(q) = sum_f C_f
-        exp(i f.q) over integer frequencies |f_k| <= d_k, and J's values on the grid of 2 d_k + 1
-        points per angle give the C_f exactly by the discrete Fourier transform (up to rounding,
-        covered by the inflation below). Then |d^3 J/dq_i dq_j dq_k| <= sum_f |C_f| |f_i f_j f_k|
-        for every q: tight where the sum-of-coefficients bound in cos, sin counts cos(a + b) as
-        2 terms.
+        J is a trigonometric polynomial of degree at most d_k in each angle k and a polynomial of
+        degree at most d_k in each prismatic coordinate (d_k: :meth:`_degrees`), so J(q) = sum_f C_f
+        prod_angles exp(i f_k q_k) prod_lengths t_k^(f_k) over |f_k| <= d_k (t_k = (q_k - mid_k) /
+        half_k in [-1, 1] over the span), and J's values on a grid of 2 d_k + 1 equispaced angles and
+        d_k + 1 Chebyshev points per length give the C_f exactly: the discrete Fourier transform
+        along the angles, the Vandermonde solve along the lengths (up to rounding, covered by the
+        inflation of fourier_derivative_bounds). Then |d^3 J/dq_i dq_j dq_k| <= sum_f |C_f| prod
+        (the derivative's factor per coordinate) for every q: tight where the sum-of-coefficients
+        bound in cos, sin counts cos(a + b) as 2 terms. With every coordinate an angle the series
+        is ``fourier`` (the split, derive.control.split, works on it).
         """
-        ring_, polys = trig
         n, m = self.n, self.m
-        deg = [0] * m
-        for p in polys:
-            for monom in p.monoms():
-                for k in range(m):
-                    deg[k] = max(deg[k], monom[k] + monom[len(ring_.angles) + k])
-        sizes = [2 * d + 1 for d in deg]
-        axes = [2 * np.pi * np.arange(L) / L for L in sizes]
+        poly = [not c.angle for c in self.deps]
+        mid = np.array([0.0 if not p else sum(c.span) / 2 for c, p in zip(self.deps, poly)])
+        half = np.array([1.0 if not p else max((c.span[1] - c.span[0]) / 2, 1e-300) for c, p in zip(self.deps, poly)])
+        sizes = [d + 1 if p else 2 * d + 1 for d, p in zip(deg, poly)]
+        nodes = [np.cos(np.pi * (np.arange(L) + 0.5) / L) if p else 2 * np.pi * np.arange(L) / L
+                 for L, p in zip(sizes, poly)]
+        axes = [mid[k] + half[k] * t if poly[k] else t for k, t in enumerate(nodes)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
-        values = self.J(grid).reshape(*sizes, n, n)
-        coef = np.fft.fftn(values, axes=tuple(range(m))) / np.prod(sizes)
-        freqs = [np.fft.fftfreq(L, 1.0 / L) for L in sizes]   # 0, 1, .., d, -d, .., -1
-        F = np.stack(np.meshgrid(*freqs, indexing="ij"), axis=-1)   # sizes x m
-        self.fourier = (coef.reshape(-1, n, n), F.reshape(-1, m).astype(int))
-        self.second, self.third = fourier_derivative_bounds(*self.fourier)
+        coef = self.J(grid).reshape(*sizes, n, n).astype(complex)
+        for k in range(m):
+            if poly[k]:   # t^e coefficients: solve the Vandermonde system along axis k
+                V = np.vander(nodes[k], sizes[k], increasing=True)
+                coef = np.moveaxis(np.tensordot(np.linalg.inv(V), coef, axes=(1, k)), 0, k)
+            else:
+                coef = np.fft.fft(coef, axis=k) / sizes[k]
+        freqs = [np.arange(L) if p else np.fft.fftfreq(L, 1.0 / L) for L, p in zip(sizes, poly)]
+        F = np.stack(np.meshgrid(*freqs, indexing="ij"), axis=-1).reshape(-1, m).astype(int)
+        coef = coef.reshape(-1, n, n)
+        if not any(poly):
+            self.fourier = (coef, F)
+        self._series = (coef, F, poly, half)
+        self.second, self.third = fourier_derivative_bounds(coef, F, poly, half)
+
+    @property
+    def fourth(self) -> np.ndarray | None:
+        """Bounds of |d^4 J/dq_h dq_i dq_j dq_k| valid for every q (m x m x m x m x n x n), from
+        the series (None without one: the coefficient bounds stop at the third derivative)."""
+        if self._fourth is None and self._series is not None:
+            self._fourth = fourier_derivative_bounds(*self._series, fourth=True)[2]
+        return self._fourth
 
     def _coefficient_bounds(self, J: sp.Matrix) -> None:
         """Bounds of the 2nd and 3rd derivatives as sums of absolute coefficients (some dep a
@@ -247,12 +341,14 @@ class InertiaModel:
                 lo, hi = c.span
                 radius[R.gens.index(qg)] = Fraction(max(abs(lo), abs(hi)))
                 ops.append(lambda p, qg=qg: p.diff(qg))
-        for a in constants:
+        for a in constants:   # |cos a|, |sin a| of a constant: their values, rounded up (sound, and far tighter than 1)
             kc, ks = next(g), next(g)
             repl[sp.cos(a)], repl[sp.sin(a)] = kc.as_expr(), ks.as_expr()
+            for gen, value in ((kc, sp.cos(a)), (ks, sp.sin(a))):
+                radius[R.gens.index(gen)] = Fraction(abs(float(sp.N(value, 30)))) * (1 + Fraction(1, 10 ** 12))
 
         def bound(p) -> float:
-            """sup |p| <= sum |coefficient| prod radius^e (|cos|, |sin| <= 1), rounded up."""
+            """sup |p| <= sum |coefficient| prod radius^e (|cos|, |sin| <= 1 of a joint angle), rounded up."""
             total = Fraction(0)
             for monom, coef in p.terms():
                 term = abs(Fraction(int(coef.numerator), int(coef.denominator)))

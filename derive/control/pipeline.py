@@ -18,6 +18,7 @@ from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.momentum import Momentum, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
+from derive.control.grid import check_definite
 from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
 from derive.control.synthesis import Synthesis, synthesise_for
@@ -129,7 +130,8 @@ def derive(arm: Arm) -> Derivation:
     """Derive the dynamics, predictive law, observer and PID form of ``arm``.
 
     Raises SpecError, naming the arm-file fields, when a derived constant is not a
-    normal double (``derive.control.ranges``: e.g. T2 = 1e-170 makes k1 = 3e339)."""
+    normal double (``derive.control.ranges``: e.g. T2 = 1e-170 makes k1 = 3e339), or when J(theta) is
+    singular at a configuration within the joint limits (``derive.control.grid.check_definite``)."""
     dyn = derive_dynamics(arm)
     ctl = arm.controller
     # the control stages are algebra over J, G, g, C: built over placeholders (milliseconds),
@@ -179,6 +181,7 @@ def derive(arm: Arm) -> Derivation:
     # inlining of its formal one (derive.proofs.project.formal_first relies on it)
     object.__setattr__(d, "_formal_of", d.formal)
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
+    check_definite(d)          # J invertible within the joint limits (derive.control.grid), before any output
     return d
 
 

@@ -40,11 +40,17 @@ y_d'' = 0, u0 the law's output): x = (theta, theta'), c the form's state,
     u_k = U_x x_k + U_c c_k,   c_{k+1} = S_x x_k + S_c c_k + S_u u_k   (explicit, and MOM),
 
 (for the implicit DOBC the loop's state is (x_k, z_{k-1}, u_{k-1})), and the loop is stable at that
-point when the spectral radius of its transition matrix is below 1. The limit is the largest dt
-(found by doubling, then bisection to 1 %) for which that holds at every operating point of a grid
-of configurations and speeds (every angle on a grid, the stated speed box's vertices and rest); the
-figure reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite
-grid. Jacobians are central differences of the laws evaluated in double precision (numbers to 1e-6
+point when the spectral radius of its transition matrix is below 1. For MOM the transition is taken
+in the residual's coordinates (x, r), r = K (J theta' - m), at the sample it maps from and the one it
+maps to (``_residual``): m moves with J(theta) theta' at a moving point, and in m's own coordinates
+the frozen-time linearisation has a mode of that motion's rate which the loop does not have
+(r' = K (B d - r) for every state); it gave my3 (3 joints, box 3-5 rad/s) rho = 1 + 6.9 dt at every
+dt, "MOM 0 ms", where the simulated loop tracks. The limit is the largest dt (found by doubling, then
+bisection to 1 %) for which that holds at every operating point of derive.control.grid: configurations
+within the joint limits times the speeds of the speed box (controller.max_joint_speed, else the URDF's
+velocity limits, else at rest only; the box's vertices and each joint alone at its bound); the figure
+reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite grid.
+Jacobians are central differences of the laws evaluated in double precision (numbers to 1e-6
 relative, far below the margin).
 """
 from __future__ import annotations
@@ -56,6 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from derive.control.grid import Grid, grid, mass_function
 from derive.dynamics.sx import batched
 
 FORMS = ("mpc", "dobc", "npid", "mom")
@@ -65,6 +72,8 @@ _Z_ONLY = "z-only"   # backward Euler of z before the measurement moves: an anal
 MARGIN = 0.9
 DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
+DT_START = 1e-5   # s: where the doubling starts (after the loop is checked stable at DT_MIN)
+ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
 
 
 @dataclass(frozen=True)
@@ -108,7 +117,8 @@ class SampledLoop:
         self.n = d.n
         x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
         th, dth = list(s.theta), list(s.dtheta)
-        self.J = _batched(th, d.J)            # P x n*n, row-major
+        mass = mass_function(d)               # P x n x n
+        self.J = lambda Q: mass(Q).reshape(Q.shape[0], -1)   # P x n*n, row-major
         self.G = _batched(th + dth, d.measured(d.G))
         self.B = np.array(d.B.tolist(), dtype=float)
         self.W = np.array(d.W.tolist(), dtype=float)
@@ -119,6 +129,7 @@ class SampledLoop:
                      "mom": _batched(x + list(mom.m), d.measured(d.u_mom))}
         # the momentum observer's m' = B u + C^T theta' - g - F theta' + K (J theta' - m) (forward Euler)
         self.mom_rate = _batched(th + dth + list(mom.m) + list(s.u), d.numeric(mom.m_rate))
+        self.K = np.array(d.numeric(mom.K).tolist(), dtype=float)
         # u_npid = u* + B^-1 W xi (derive.control.npid): the implicit NPID replaces W by W_dt there
         self.xi = _batched(x + list(s.int_e), d.measured(d.numeric(d.npid.xi)))
 
@@ -163,28 +174,30 @@ class SampledLoop:
                "J": self.mass(Q), "dr": dr, "Xi": Xi}
         if form == "mom":
             out["R"] = _jac(self.mom_rate, np.hstack([XC0, u_of(XC0)]))
+            # the residual's coordinates r = K (J(theta) theta' - m): P = d(J theta')/dx at the point and its
+            # rate along the nominal motion x' = (theta', theta'') (central differences)
+            X0 = np.hstack([Q, DQ])
+            momentum = self.momentum
+            out["P"] = _jac(momentum, X0)
+            f0 = f(np.hstack([X0, u_of(XC0)]))
+            h = 1e-6 / (1.0 + np.abs(f0).max(axis=1, keepdims=True))
+            out["Pdot"] = (_jac(momentum, X0 + h * f0) - _jac(momentum, X0 - h * f0)) / (2 * h[:, :, None])
         return out
 
+    def momentum(self, X: np.ndarray) -> np.ndarray:
+        """The generalized momentum J(theta) theta' at the rows of X = (theta, theta'): P x n."""
+        n = self.n
+        return np.einsum("pij,pj->pi", self.mass(X[:, :n]), X[:, n:])
 
-def operating_points(d, count: int = 48, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Configurations (a grid of every angle for n <= 2, else seeded random ones and 0) times the
-    speeds (rest and the stated box's vertices, at most 8 of them)."""
-    n = d.n
-    rng = np.random.default_rng(seed)
-    if n <= 2:
-        axis = np.linspace(-np.pi, np.pi, 8, endpoint=False)
-        configs = [np.array(p) for p in itertools.product(axis, repeat=n)]
-    else:
-        configs = [np.zeros(n)] + [rng.uniform(-np.pi, np.pi, n) for _ in range(count - 1)]
-    speeds = [np.zeros(n)]
-    box = d.arm.controller.max_joint_speed
-    if box is not None:
-        s = np.array([float(x) for x in box])
-        verts = [np.array(v) * s for v in itertools.product((1.0, -1.0), repeat=n)]
-        if len(verts) > 8:
-            verts = [verts[i] for i in rng.choice(len(verts), 8, replace=False)]
-        speeds += verts
-    return [(q, dq) for q in configs for dq in speeds]
+
+def operating_points(d) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The operating points (theta, theta') of derivation ``d``: derive.control.grid (within the
+    joint limits, speeds up to the speed box; SpecError for a singular J there)."""
+    return list(_grid(d).points)
+
+
+def _grid(d) -> Grid:
+    return _cached(_GRIDS, d, "grid", lambda: grid(d))
 
 
 def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None) -> SampleLimit:
@@ -204,35 +217,42 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     # both discretisations linearise the same laws at the default points: once per derivation and form
     loop, L = _cached(_LINEAR, d, form, linearise) if points is None else linearise()
 
-    def stable(dt: float) -> tuple[bool, int | None]:
-        rho = _radii(loop, form, observer, dt, L)
-        k = int(rho.argmax())
-        return (True, None) if rho[k] < 1.0 else (False, k)
+    def radii(dt: float, idx: np.ndarray | None = None) -> np.ndarray:
+        return _radii(loop, form, observer, dt, L if idx is None else {k: v[idx] for k, v in L.items()})
 
-    lo, hi, bad = DT_MIN, None, None
-    ok, _ = stable(lo)
-    if not ok:
-        return SampleLimit(form, observer, 0.0, 0.0, len(pts), None)
-    dt = lo
-    while dt < DT_MAX:
-        dt = min(dt * 2, DT_MAX)
-        ok, k = stable(dt)
-        if not ok:
-            hi, bad = dt, k
-            break
-        lo = dt
+    def done(lo: float, bad: int | None) -> SampleLimit:
+        worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
+        return SampleLimit(form, observer, MARGIN * lo, lo, len(pts), worst)
+
+    rho = radii(DT_MIN)
+    if rho.max() >= 1.0:   # unstable as dt -> 0: the linearised loop itself, not its sampling
+        return done(0.0, int(rho.argmax()))
+    # doubling over every point from DT_START, then bisection over the points nearest to failing at the
+    # bracket's upper end, then the whole grid at the result (again if a point fails there)
+    safe, dt, hi = DT_MIN, DT_START, None
+    while hi is None and safe < DT_MAX:
+        rho = radii(dt)
+        if rho.max() >= 1.0:
+            hi = dt
+        else:
+            safe, dt = dt, min(dt * 2, DT_MAX)
     if hi is None:
         return SampleLimit(form, observer, math.inf, math.inf, len(pts), None)
-    while hi / lo > 1.01:
-        mid = math.sqrt(lo * hi)
-        ok, k = stable(mid)
-        if ok:
-            lo = mid
-        else:
-            hi, bad = mid, k
-    q0, dq0 = pts[bad]
-    return SampleLimit(form, observer, MARGIN * lo, lo, len(pts),
-                       (tuple(float(x) for x in q0), tuple(float(x) for x in dq0)))
+    lo, bad = safe, int(rho.argmax())
+    active = np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]
+    while True:
+        while hi / lo > 1.01:
+            mid = math.sqrt(lo * hi)
+            r = radii(mid, active)
+            if r.max() < 1.0:
+                lo = mid
+            else:
+                hi, bad = mid, int(active[r.argmax()])
+        rho = radii(lo)
+        if rho.max() < 1.0:
+            return done(lo, bad)
+        hi, bad, lo = lo, int(rho.argmax()), safe
+        active = np.union1d(active, np.flatnonzero(rho >= 1.0))
 
 
 def _expm(M: np.ndarray) -> np.ndarray:
@@ -266,6 +286,9 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
     if form == "mom":                       # m + dt m'(x, m, u), the same in both discretisations
         R = dt * L["R"]
         Sx, Sc, Su = R[:, :, :m], eye + R[:, :, m:m + n], R[:, :, m + n:]
+        M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
+                            np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
+        return np.abs(np.linalg.eigvals(_residual(M, L, loop.K, dt))).max(axis=-1)
     elif form == "npid":                      # int_e + dt (yd - C theta)
         if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
             BW = np.linalg.solve(loop.B, loop.W)
@@ -291,7 +314,27 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
     return np.abs(np.linalg.eigvals(M)).max(axis=-1)
 
 
+def _residual(M: np.ndarray, L: dict, K: np.ndarray, dt: float) -> np.ndarray:
+    """The MOM transition M over (x, m) in the residual's coordinates (x, r), r = K (J theta' - m),
+    taken at the sample it maps from (P_k) and at the one it maps to (P_k+1 = P_k + dt P', the
+    nominal motion to first order): T_k+1^-1 M T_k, m = P x - K^-1 r. At a moving operating point m
+    moves with J(theta) theta'; in m's own coordinates the frozen-time linearisation shows a mode
+    of the rate of that motion (P' K-terms: my3 at 3-5 rad/s, rho = 1 + 6.9 dt at every dt) that
+    the loop does not have: r' = K (B d - r) whatever the state (derive.control.momentum)."""
+    n = K.shape[0]
+    P = M.shape[0]
+    P0, P1 = L["P"], L["P"] + dt * L["Pdot"]
+    eye = np.broadcast_to(np.eye(2 * n), (P, 2 * n, 2 * n))
+    zero = np.zeros((P, 2 * n, n))
+    T0 = np.concatenate([np.concatenate([eye, zero], axis=-1),
+                         np.concatenate([P0, np.broadcast_to(-np.linalg.inv(K), (P, n, n))], axis=-1)], axis=-2)
+    T1 = np.concatenate([np.concatenate([eye, zero], axis=-1),
+                         np.concatenate([K @ P1, np.broadcast_to(-K, (P, n, n))], axis=-1)], axis=-2)
+    return T1 @ M @ T0
+
+
 _LIMITS: dict = {}
+_GRIDS: dict = {}
 _LINEAR: dict = {}
 _LOOPS: dict = {}
 
@@ -327,35 +370,56 @@ def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
 
 
 def _ms(x: float) -> str:
+    if x == 0:
+        return "none (the linearised loop is unstable as dt -> 0: not a sampling limit)"
     return "none below 1 s" if math.isinf(x) else f"{x * 1e3:.3g} ms"
 
 
-def _how(lim: dict[str, SampleLimit]) -> str:
-    return (f"sampled loop, zero-order hold, linearised over {lim['dobc'].points} operating points, "
+def _how(d) -> str:
+    return (f"sampled loop, zero-order hold, linearised at {_grid(d).describe()}, "
             f"{int(round((1 - MARGIN) * 100))} % margin")
+
+
+def covered(d) -> str:
+    """What the limits cover, in words: the grid's configurations and speeds (derive.control.grid)."""
+    return _grid(d).describe()
 
 
 def summary(d, observer: str = "explicit") -> str:
     """One line: the largest sample time of each form with ``observer``, as the generated headers state it."""
     lim = limits(d, observer)
     parts = ", ".join(f"{f.upper()} {_ms(lim[f].limit)}" for f in FORMS)
-    return (f"largest sample time (sampled loop, zero-order hold, {observer} observer step, linearised over "
-            f"{lim['dobc'].points} operating points, {int(round((1 - MARGIN) * 100))} % margin): {parts}")
+    return f"largest sample time ({_how(d)}; {observer} observer step): {parts}"
 
 
 def summary_all(d) -> str:
     """One line with both discretisations, as ``derive check`` and ``derive show`` print it."""
     e, i = limits(d, "explicit"), limits(d, "implicit")
-    return (f"largest sample time ({_how(e)}): MPC {_ms(e['mpc'].limit)}; MOM {_ms(e['mom'].limit)} "
+    return (f"largest sample time ({_how(d)}): MPC {_ms(e['mpc'].limit)}; MOM {_ms(e['mom'].limit)} "
             f"(momentum observer, the same step in both builds); DOBC {_ms(e['dobc'].limit)}, "
             f"NPID {_ms(e['npid'].limit)} with the forward-Euler observer step (derive generate's default); "
             f"DOBC {_ms(i['dobc'].limit)}, NPID {_ms(i['npid'].limit)} with --observer implicit")
 
 
 def too_slow(d, sample_time: float, forms=FORMS, observer: str = "explicit") -> list[str]:
-    """Sentences for the forms whose limit (with ``observer``) ``sample_time`` [s] exceeds (empty when none)."""
+    """Sentences for the forms whose limit (with ``observer``) ``sample_time`` [s] exceeds (empty when none),
+    each with the form's limit and, for an explicit build, its limit with ``--observer implicit`` and
+    whether that allows ``sample_time``."""
     lim = limits(d, observer)
-    how = "" if observer == "explicit" else f" with --observer {observer}"
-    return [f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)}{how} "
-            f"(the sampled loop is unstable from {_ms(lim[f].raw)} at some configuration)"
-            for f in forms if f in lim and sample_time > lim[f].limit]
+    other = limits(d, "implicit") if observer == "explicit" else None
+    out = []
+    for f in forms:
+        if f not in lim or not sample_time > lim[f].limit:
+            continue
+        how = "" if observer == "explicit" else f" with --observer {observer}"
+        text = (f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)}{how} "
+                f"(the sampled loop is unstable from {_ms(lim[f].raw)} at some operating point)")
+        if other is not None and f not in SHARED:
+            alt = other[f].limit
+            text += (f"; with --observer implicit the {f.upper()} limit is {_ms(alt)}, "
+                     + ("which allows it" if sample_time <= alt else "which does not allow it either"))
+        elif other is not None:
+            text += f" (the same with --observer implicit: {f.upper()} has no observer step to change)" \
+                if f == "mpc" else " (the same with --observer implicit: the momentum observer steps alike in both)"
+        out.append(text)
+    return out

@@ -14,10 +14,15 @@ For a speed vertex theta'_v the rest enters N of (*) as M_R = 2 beta J_R + J_R';
 
     M_R = sum_{f in P} 2 Re((2 beta + i f.theta'_v) C_f exp(i f.theta))
         = sum_{f in P} 2 [2 beta (A_f cos - B_f sin) - (f.theta'_v) (B_f cos + A_f sin)](f.theta)
-        <= U(v) = sum_{f in P} 2 (2 beta + |f.theta'_v|) (|A_f| + |B_f|)
+        <= U(v) = sum_{f in P} 2 (2 beta + |f.theta'_v|) (|A_f|_T + |B_f|_T)
 
-for every theta, since c A <= |c| |A| for a number c and |A| the matrix absolute value (the
-same eigenvectors, absolute eigenvalues). So (*) holds wherever
+for every theta, since c A <= |c| |A|_T for a number c and |A|_T = T |T^-1 A T^-T| T^T with |X| the
+matrix absolute value (the same eigenvectors, absolute eigenvalues), for any invertible T. Two are
+kept: J's own scale, T T^T = C_0 (J averaged over every angle), and T = I. With T = I the absolute
+values mix the base's large terms into a light wrist's directions (the Panda's U is 2.3 times
+larger relative to J), which a W shaped like J (derive.control.starter) pays for; a W of small norm
+(derive tune) does better with T = I. Each decision takes the one that is smaller relative to its
+W + W^T (ObserverCertificate.scale_for). So (*) holds wherever
 
     N_A(theta_inner, v) = W + W^T - U(v) - J_A'(theta_inner, theta'_v) - 2 beta J_A(theta_inner)
 
@@ -25,7 +30,8 @@ is positive definite, which branch and bound decides over the inner angles alone
 of the inner speeds; the outer speeds' signs are covered inside U, see :meth:`SplitModel.majorant`). The split is
 sound, not exact: failing it refutes nothing (the certificate then says ``unproven``), and a W
 certified this way is larger than the smallest one (the synthesis works on the same condition,
-so the W it returns is provable). The inner angles are chosen greedily to make U smallest.
+so the W it returns is provable). The inner angles are the choice that makes U + J_A' smallest
+relative to C_0 (every choice is tried).
 """
 from __future__ import annotations
 
@@ -44,16 +50,45 @@ def _abs_matrix(X: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j,...kj->...ik", V, np.abs(w), V)
 
 
+def metric(full: InertiaModel) -> np.ndarray:
+    """T with T T^T = C_0, J's mean over every angle (its constant Fourier term, positive definite
+    as a mean of positive definite matrices): the metric the majorant's absolute values are taken
+    in (J's own scale, so a light wrist's small terms are not outweighed by the base's)."""
+    C0 = full.fourier[0][np.flatnonzero(~np.any(full.fourier[1] != 0, axis=1))[0]].real
+    return np.linalg.cholesky((C0 + C0.T) / 2)
+
+
+def pair_parts(full: InertiaModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(indices, majorants): one frequency f of each pair f, -f (its first nonzero component
+    positive) and 2 (|A_f|_T + |B_f|_T) for it, C_f = A_f + i B_f, |X|_T = T |T^-1 X T^-T| T^T."""
+    coef, F = full.fourier
+    nonzero = np.any(F != 0, axis=1)
+    first = F[np.arange(F.shape[0]), np.argmax(F != 0, axis=1)]
+    rep = np.flatnonzero(nonzero & (first > 0))
+    Ti = np.linalg.inv(T)
+
+    def absolute(X: np.ndarray) -> np.ndarray:
+        return np.einsum("ab,pbc,dc->pad", T, _abs_matrix(np.einsum("ab,pbc,dc->pad", Ti, X, Ti)), T)
+
+    return rep, 2.0 * (absolute(coef[rep].real) + absolute(coef[rep].imag))
+
+
+def both_parts(full: InertiaModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`pair_parts` in J's scale ("J") and in the identity's ("I")."""
+    return {"J": pair_parts(full, metric(full)), "I": pair_parts(full, np.eye(full.n))}
+
+
 class SplitModel:
     """J_A over the inner angles (values, derivatives, bounds: the interface of InertiaModel) and
     the majorant U of the outer terms.
 
     full: the InertiaModel (every dep an angle, its ``fourier`` set); inner: indices into
-    full.deps. ``deps``, ``m``, ``spans``, ``periodic``, ``second``, ``third`` refer to the inner
-    angles; ``vertex_deps`` are all of full.deps (the speed box's vertices range over them).
+    full.deps; parts: :func:`pair_parts` when the caller has them. ``deps``, ``m``, ``spans``,
+    ``periodic``, ``second``, ``third`` refer to the inner angles; ``vertex_deps`` are all of
+    full.deps (the speed box's vertices range over them).
     """
 
-    def __init__(self, full: InertiaModel, inner: tuple[int, ...]) -> None:
+    def __init__(self, full: InertiaModel, inner: tuple[int, ...], parts=None) -> None:
         coef, F = full.fourier
         self.full, self.inner = full, tuple(inner)
         outer = [k for k in range(full.m) if k not in self.inner]
@@ -66,71 +101,117 @@ class SplitModel:
         keep = ~np.any(F[:, outer] != 0, axis=1) if outer else np.ones(F.shape[0], bool)
         self._C = coef[keep].reshape(-1, self.n * self.n)
         self._F = F[keep][:, list(self.inner)].astype(float)
-        # one of each pair f, -f among the rest: the first nonzero component positive
-        rest = np.flatnonzero(~keep)
-        first = F[rest][np.arange(rest.size), np.argmax(F[rest] != 0, axis=1)]
-        rep = rest[first > 0]
-        self._rest_F = F[rep].astype(float)                                         # P x m_full
-        self._rest_abs = 2.0 * (_abs_matrix(coef[rep].real) + _abs_matrix(coef[rep].imag))   # P x n x n
+        # one of each pair f, -f among the rest (the first nonzero component positive), majorised in J's scale
+        # ("J") and in the identity's ("I")
+        parts = both_parts(full) if parts is None else parts
+        rep = parts["J"][0]
+        rest = ~keep[rep]
+        self._rest_F = F[rep[rest]].astype(float)                                   # P x m_full
+        self._rest_abs = {key: absolute[rest] for key, (_, absolute) in parts.items()}   # P x n x n each
         norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))                       # Frobenius of every C_f
         self._all_F, self._all_norm = F.astype(float), norms
-        self.second, self.third = fourier_derivative_bounds(coef[keep], F[keep][:, list(self.inner)])
+        self._keep = keep
+        self._bounds: tuple[np.ndarray, ...] | None = None
+
+    @property
+    def second(self) -> np.ndarray:
+        return self._derivative_bounds()[0]
+
+    @property
+    def third(self) -> np.ndarray:
+        return self._derivative_bounds()[1]
+
+    @property
+    def fourth(self) -> np.ndarray:
+        return self._derivative_bounds()[2]
+
+    def _derivative_bounds(self) -> tuple[np.ndarray, ...]:
+        if self._bounds is None:
+            coef, F = self.full.fourier
+            self._bounds = fourier_derivative_bounds(coef[self._keep], F[self._keep][:, list(self.inner)],
+                                                     fourth=True)
+        return self._bounds
 
     # -- J_A and its derivatives at inner points ---------------------------------------------
-    def _weighted(self, q: np.ndarray, weights: list[np.ndarray]) -> np.ndarray:
-        """Re sum_f w(f) C_f exp(i f.q) for each weight vector w (K): N x len(weights) x n^2."""
+    def _weighted(self, q: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Re sum_f w(f) C_f exp(i f.q) for each row w of ``weights`` (W x K): N x W x n^2, one
+        matrix product."""
         E = np.exp(1j * (q @ self._F.T))                                    # N x K
-        return np.stack([((E * w[None, :]) @ self._C).real for w in weights], axis=1)
+        N, K = E.shape
+        return ((E[:, None, :] * weights[None]).reshape(-1, K) @ self._C).real.reshape(N, weights.shape[0], -1)
+
+    def _powers(self, order: int) -> np.ndarray:
+        """The weights (i f)^alpha of every order-th derivative, index tuples in row-major order: m^order x K
+        (each distinct tuple computed once)."""
+        tuples = list(itertools.product(range(self.m), repeat=order))
+        unique = sorted({tuple(sorted(t)) for t in tuples})
+        rows = np.array([np.prod([1j * self._F[:, k] for k in idx], axis=0) if idx else np.ones(self._F.shape[0], complex)
+                         for idx in unique])
+        return rows, np.array([unique.index(tuple(sorted(t))) for t in tuples])
+
+    def _derivative(self, q: np.ndarray, order: int) -> np.ndarray:
+        rows, where = self._powers(order)
+        return self._weighted(q, rows)[:, where]
 
     def J(self, q: np.ndarray) -> np.ndarray:
         """J_A at inner points q (N x m): N x n x n."""
-        return self._weighted(q, [np.ones(self._F.shape[0])]).reshape(-1, self.n, self.n)
+        return self._derivative(q, 0).reshape(-1, self.n, self.n)
 
     def dJ(self, q: np.ndarray) -> np.ndarray:
         """dJ_A/dq_k: N x m x n x n (the derivative of exp(i f.q) is i f_k exp(i f.q))."""
-        out = self._weighted(q, [1j * self._F[:, k] for k in range(self.m)])
-        return out.reshape(-1, self.m, self.n, self.n)
+        return self._derivative(q, 1).reshape(-1, self.m, self.n, self.n)
 
     def d2J(self, q: np.ndarray) -> np.ndarray:
         """d^2 J_A/dq_j dq_k: N x m x m x n x n."""
         m = self.m
-        out = self._weighted(q, [-self._F[:, j] * self._F[:, k] for j in range(m) for k in range(m)])
-        return out.reshape(-1, m, m, self.n, self.n)
+        return self._derivative(q, 2).reshape(-1, m, m, self.n, self.n)
+
+    def d3J(self, q: np.ndarray) -> np.ndarray:
+        """d^3 J_A/dq_i dq_j dq_k: N x m x m x m x n x n."""
+        m = self.m
+        return self._derivative(q, 3).reshape(-1, m, m, m, self.n, self.n)
 
     # -- the outer terms ---------------------------------------------------------------------
-    def majorant(self, speeds: np.ndarray, beta: float) -> np.ndarray:
+    def majorant(self, speeds: np.ndarray, beta: float, scale: str = "J") -> np.ndarray:
         """U for each row of ``speeds`` (V x m_full, rad/s, the box's scale included; an outer
-        column holds the box's half-width, whatever the sign): V x n x n. The outer signs are
-        covered at once by |f.theta'| <= |f_inner.theta'_inner| + sum_outer |f_k| |theta'_k|, so
-        the vertices range over the inner speeds only. The transform's rounding on every
-        coefficient is added as a multiple of the identity."""
+        column holds the box's half-width, whatever the sign): V x n x n, the absolute values taken
+        in J's scale (``scale`` "J", T T^T = C_0) or the identity's ("I"; either is a majorant).
+        The outer signs are covered at once by |f.theta'| <= |f_inner.theta'_inner| + sum_outer
+        |f_k| |theta'_k|, so the vertices range over the inner speeds only. The transform's rounding
+        on every coefficient is added as a multiple of the identity."""
         outer = [k for k in range(self.full.m) if k not in self.inner]
         inner = list(self.inner)
 
         def weight(F: np.ndarray) -> np.ndarray:
             return np.abs(speeds[:, inner] @ F[:, inner].T) + np.abs(speeds[:, outer]) @ np.abs(F[:, outer]).T
 
-        U = np.einsum("vp,pab->vab", 2.0 * beta + weight(self._rest_F), self._rest_abs)
+        U = np.einsum("vp,pab->vab", 2.0 * beta + weight(self._rest_F), self._rest_abs[scale])
         slack = ROUNDING * ((2.0 * beta + weight(self._all_F)) @ self._all_norm)   # V
         return U + slack[:, None, None] * np.eye(self.n)[None]
 
 
 def split_model(full: InertiaModel, shape: np.ndarray, size: int = MAX_INNER) -> SplitModel:
     """The split of ``full`` with ``size`` inner angles whose majorant on the box of this shape
-    (rate 0) is smallest, chosen greedily one angle at a time."""
-    speeds = np.array([[shape[c.index] for c in full.deps]])   # the outer half-widths; inner set below
-    inner: list[int] = []
-    while len(inner) < min(size, full.m):
-        best = None
-        for k in range(full.m):
-            if k in inner:
-                continue
-            trial = tuple(sorted(inner + [k]))
-            signs = np.array(list(itertools.product((1.0, -1.0), repeat=len(trial))))
-            vertices = np.repeat(speeds, signs.shape[0], axis=0)
-            vertices[:, list(trial)] *= signs
-            top = np.linalg.eigvalsh(SplitModel(full, trial).majorant(vertices, 0.0))[:, -1].max()
-            if best is None or top < best[0]:
-                best = (top, k)
-        inner.append(best[1])
-    return SplitModel(full, tuple(sorted(inner)))
+    (rate 0), with J_A's own worst speed term at sampled inner angles, is smallest relative to J's
+    mean (largest eigenvalue of T^-1 (U + J_A') T^-T over the inner vertices): every choice is
+    tried (at most 35 for 7 angles)."""
+    T = metric(full)
+    Ti = np.linalg.inv(T)
+    parts = both_parts(full)
+    speeds = np.array([[shape[c.index] for c in full.deps]])   # the outer half-widths; inner signs below
+    size = min(size, full.m)
+    best = None
+    for trial in itertools.combinations(range(full.m), size):
+        rng = np.random.default_rng(0)
+        model = SplitModel(full, trial, parts)
+        signs = np.array(list(itertools.product((1.0, -1.0), repeat=size)))
+        vertices = np.repeat(speeds, signs.shape[0], axis=0)
+        vertices[:, list(trial)] *= signs
+        lo = np.array([span[0] for span in model.spans])
+        hi = np.array([span[1] for span in model.spans])
+        q = lo + (hi - lo) * rng.random((64, size))
+        M = model.majorant(vertices, 0.0)[None] + np.einsum("vk,pkab->pvab", vertices[:, list(trial)], model.dJ(q))
+        top = np.linalg.eigvalsh(np.einsum("ab,pvbc,dc->pvad", Ti, M, Ti))[..., -1].max()
+        if best is None or top < best[0]:
+            best = (top, model)
+    return best[1]

@@ -111,6 +111,11 @@ def synthesise(model: InertiaModel, box, rate: float = 0.0, structure: str = "ch
         raise DerivationError(f"observer synthesis: structure {structure!r} is not one of {STRUCTURES}")
     start = time.perf_counter()
     n = model.n
+    if model.m == 0 and not rate > 0:
+        raise DerivationError("observer synthesis: J depends on no joint coordinate, so J' = 0 and the certificate "
+                              "W + W^T - 2 beta J > 0 holds at every speed for any W with W + W^T > 0: there is no "
+                              "smallest W at rate 0; give a rate beta > 0 (derive tune --rate, controller.observer_rate) "
+                              "to get the smallest W for it, about beta J")
     cert = ObserverCertificate(model, box)
     box = np.asarray(box, dtype=float)
     rng = np.random.default_rng(seed)
@@ -120,6 +125,7 @@ def synthesise(model: InertiaModel, box, rate: float = 0.0, structure: str = "ch
     scale = float(np.abs(J0).max()) or 1.0
     rounds, tried, last = 0, [], None
     seed_points = cert.samples(SEED, seed=seed)[-SEED:]
+    seed_points = seed_points[np.arange(SEED) % seed_points.shape[0]]   # one point when J is constant
     seed_vertices = rng.integers(nv, size=SEED)
     for h in HEADROOMS:
         v, beta = 1.0 + h, rate * (1.0 + h) + h * 1e-3

@@ -27,7 +27,15 @@ gear ratio                       1/100 <= gear ratio <= 10000                 a 
 torque vs voltage constant       1/2 <= Kt / Kv <= 2 (equal in SI units)      Kv in V/krpm or rpm/V
 voltage limit                    <= 1000 V                                    mV written as V
 gravity                          g <= 20 m/s^2                                cm/s^2 written as m/s^2
+revolute joint range             |lower|, |upper| <= 4 pi rad                 degrees written as radians
+prismatic joint travel           |lower|, |upper| <= 10 m                     mm written as m
+joint velocity limit             <= 50 rad/s (10 m/s prismatic)               deg/s or rpm as rad/s
+controller.max_joint_speed       <= 50 rad/s                                  deg/s or rpm as rad/s
 ===============================  ===========================================  ==========================
+
+The last four are the ranges the operating-point grids cover (the observer certificate's box, the
+sample-time analysis, derive.control.grid): a range in the wrong unit would put the grids, and
+the guarantees stated over them, far from the arm's real motion.
 """
 from __future__ import annotations
 
@@ -53,6 +61,9 @@ GEAR_RATIO = (Fraction(1, 100), Fraction(10000))
 KT_OVER_KV = (Fraction(1, 2), Fraction(2))         # Kt [N m/A] = Kv [V s/rad] for an ideal DC motor
 MAX_VOLTAGE = Fraction(1000)         # V
 MAX_GRAVITY = Fraction(20)           # m/s^2: twice the Earth's
+MAX_ANGLE = 4 * Fraction(355, 113)   # rad: two turns each way (4 pi, rounded up)
+MAX_JOINT_SPEED = Fraction(50)       # rad/s: faster than any arm joint (direct-drive ones reach about 10-20)
+MAX_TRAVEL_SPEED = Fraction(10)      # m/s
 
 
 def plausibility(arm: Arm) -> tuple[Problem, ...]:
@@ -65,6 +76,10 @@ def plausibility(arm: Arm) -> tuple[Problem, ...]:
         out.append(Problem("arm.gravity", f"at most {fmt(MAX_GRAVITY)} m/s^2 (the Earth's is 9.81; "
                            "cm/s^2 written as m/s^2?)", f"{fmt(arm.gravity)} m/s^2"))
     out += _planar(arm) if arm.spatial is None else _spatial(arm)
+    for i, v in enumerate(arm.controller.max_joint_speed or (), 1):
+        if v > MAX_JOINT_SPEED:
+            out.append(Problem(f"controller.max_joint_speed[{i}]", f"at most {fmt(MAX_JOINT_SPEED)} rad/s (no arm "
+                               "joint is faster; deg/s or rpm written as rad/s?)", f"{fmt(v)} rad/s"))
     for i, motor in enumerate(arm.motors, 1):
         out += _motor(motor, f"motor[{i}]")
     return tuple(out)
@@ -103,6 +118,7 @@ def _spatial(arm: Arm) -> list[Problem]:
         elif p.unit == "m":
             out += _length(p.field, p.value)
     for joint in arm.spatial.joints:
+        out += _ranges(joint)
         offset = joint.origin.p
         if not offset.free_symbols:
             size = Fraction(repr(float(sp.sqrt((offset.T * offset)[0, 0]))))
@@ -110,6 +126,27 @@ def _spatial(arm: Arm) -> list[Problem]:
                 out.append(Problem(f"{joint.field} origin", f"a joint at most {fmt(MAX_LENGTH)} m from the previous "
                                    "one (DH a and d, URDF <origin xyz>; millimetres written as metres?)",
                                    f"{fmt(size)} m"))
+    return out
+
+
+def _ranges(joint) -> list[Problem]:
+    """A joint's stated range and velocity limit in their units (rad or m, rad/s or m/s)."""
+    out: list[Problem] = []
+    lim, rotates = joint.limits, joint.type.rotates
+    for key, x in (("lower", lim.lower), ("upper", lim.upper)):
+        if x is None:
+            continue
+        if rotates and abs(x) > MAX_ANGLE:
+            out.append(Problem(f"{joint.field} <limit {key}>", "a joint angle within -4 pi ... 4 pi rad (two turns "
+                               "each way; degrees written as radians?)", f"{fmt(x)} rad"))
+        elif not rotates and abs(x) > MAX_LENGTH:
+            out.append(Problem(f"{joint.field} <limit {key}>", f"a travel within -{fmt(MAX_LENGTH)} ... "
+                               f"{fmt(MAX_LENGTH)} m (millimetres written as metres?)", f"{fmt(x)} m"))
+    bound, unit = (MAX_JOINT_SPEED, "rad/s") if rotates else (MAX_TRAVEL_SPEED, "m/s")
+    if lim.velocity is not None and lim.velocity > bound:
+        out.append(Problem(f"{joint.field} <limit velocity>", f"at most {fmt(bound)} {unit} (no arm joint is "
+                           f"faster; {'deg/s or rpm' if rotates else 'mm/s'} written as {unit}?)",
+                           f"{fmt(lim.velocity)} {unit}"))
     return out
 
 

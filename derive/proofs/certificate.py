@@ -53,6 +53,8 @@ def check_certificate(d: Derivation) -> Outcome:
     if r.unbounded:
         return Outcome(Status.UNPROVEN, f"J depends on the prismatic coordinates {', '.join(r.unbounded)}, which have "
                        "no limits: the certificate needs their ranges (give the joints limits)")
+    if r.constant:
+        return _constant(d, r)
     shape = r.shape
     unit = "the stated max_joint_speed" if r.stated else "|theta'_k| <= v for every k"
     speed = (f"certified speed box (beta = 0): {_box(shape, r.speed)}" + (f" = {r.speed:.4g} x the stated box"
@@ -95,6 +97,26 @@ def check_certificate(d: Derivation) -> Outcome:
         return Outcome(Status.UNPROVEN, f"no speed box was decided within the cell budget; {speed}", evidence=evidence)
     return Outcome(Status.PROVED, f"{speed}; {rate} ({unit}; no max_joint_speed stated)", evidence=evidence,
                    summary=summary)
+
+
+def _constant(d: Derivation, r: cert.Report) -> Outcome:
+    """J depends on no joint coordinate (one joint, or J constant): J' = 0, so (*) is the single matrix
+    inequality W + W^T - 2 beta J > 0, the same at every theta and speed: decided exactly."""
+    W = [list(map(_fmt, row)) for row in r.W]
+    need = float(d.arm.controller.observer_rate)
+    head = (f"J does not depend on the joint coordinates, so J' = 0 and (*) is W + W^T - 2 beta J > 0 at every theta "
+            f"and every speed (W = {W})")
+    evidence = f"{head}; {r.seconds:.2f} s"
+    if r.speed_decision.verdict is not cert.Verdict.PROVED:
+        return Outcome(Status.REFUTED, f"{head}: W + W^T is not positive definite, so V of (a7) does not decrease "
+                       "even at rest; choose another W", evidence=evidence,
+                       summary="J constant: W + W^T not positive definite")
+    rate = f"every rate beta < {r.rate:.4g} 1/s (the smallest eigenvalue of J^-1/2 (W + W^T) J^-1/2 over 2)"
+    if need > 0 and not need < r.rate:
+        return Outcome(Status.REFUTED, f"controller.observer_rate = {need:g} 1/s is not certified: {head}, which "
+                       f"holds for {rate}", evidence=evidence, summary=f"stated observer_rate {need:g} 1/s not certified")
+    return Outcome(Status.PROVED, f"{head}: holds at every speed, for {rate}", evidence=evidence,
+                   summary=f"V of (a7), n = {d.n}, J constant: every speed, beta < {r.rate:.4g} 1/s")
 
 
 # -- the exact two-link region ------------------------------------------------------------------

@@ -111,9 +111,13 @@ def _observer_structure(E: Env) -> list[Outcome]:
     """W of (25) (generalised), p = W theta' (23), L J = W (24, n = 2), dhat = B^-1 (z + p) (22)."""
     d, F, n = E.d, E.F, E.n
     w = d.observer.values
-    W25 = sp.Matrix(n, n, lambda i, j: w[j][1] if j <= i else 0)
-    out = [Outcome(Status.PROVED if d.W == W25 else Status.REFUTED,
-                   "W = [[w1, 0], [w1, w2]] (25)" if n == 2 else "W[i][j] = w_j (j <= i), (25) generalised")]
+    if d.observer.full:   # a full W (stated, or synthesised with observer_structure = "full"): the arm's own
+        W = sp.Matrix(n, n, [v for _, v in w])
+        out = [Outcome(Status.PROVED if d.W == W else Status.REFUTED, "W = the arm's full n x n W (no pattern imposed)")]
+    else:
+        W25 = sp.Matrix(n, n, lambda i, j: w[j][1] if j <= i else 0)
+        out = [Outcome(Status.PROVED if d.W == W25 else Status.REFUTED,
+                       "W = [[w1, 0], [w1, w2]] (25)" if n == 2 else "W[i][j] = w_j (j <= i), (25) generalised")]
     out.append(equal(F, F.matrix(d.numeric(d.observer.p)), F.matrix(d.W * E.dtheta),
                      proved="p = W theta' (23)", refuted="p is not W theta' (23)"))
     if n <= 2:

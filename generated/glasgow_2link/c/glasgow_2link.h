@@ -22,9 +22,11 @@
  *   initial estimate dhat(0) = -B^-1 W C^-1 (e'(0) + K2 e(0)); discretised,
  *   they differ by O(dt).
  * Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
- * Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
- * linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
- * ms, MOM 36 ms.
+ * Sample time: largest sample time (sampled loop, zero-order hold, linearised at 64
+ * operating points: 64 configurations within the joint limits, speeds at rest only (no
+ * speed box: the arm file states no controller.max_joint_speed and its input no velocity
+ * limits), 10 % margin; explicit observer step): MPC 602 ms, DOBC 11.8 ms, NPID 11.5 ms,
+ * MOM 35.9 ms.
  * Voltage limits [V] (0 = none): u is clipped to [-u_max, u_max]; the observer is
  * fed the clipped u and the PID integrator of a clipped joint is held. Every
  * step reports the joints it clipped in *clipped (a glasgow_2link_mask; NULL: not

@@ -15,9 +15,11 @@ reduce to a PID: derive.control.momentum).
 A step returns (code, u, clipped): clipped is the bitmask of the joints it
 clipped (bit i, 1 << i, for joint i + 1; 0 when none was), as in C.
 Observer gain W = [[1, 0], [1, 2]] N m s/rad (chen structure, eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s).
-Sample time: largest sample time (sampled loop, zero-order hold, explicit observer step,
-linearised over 64 operating points, 10 % margin): MPC 601 ms, DOBC 11.7 ms, NPID 11.5
-ms, MOM 36 ms.
+Sample time: largest sample time (sampled loop, zero-order hold, linearised at 64
+operating points: 64 configurations within the joint limits, speeds at rest only (no
+speed box: the arm file states no controller.max_joint_speed and its input no velocity
+limits), 10 % margin; explicit observer step): MPC 602 ms, DOBC 11.8 ms, NPID 11.5 ms,
+MOM 35.9 ms.
 A step returns ENONFINITE (non-finite input, state or result) or EDT (bad dt)
 with u and clipped None, and leaves its state untouched. An argument of the wrong
 shape or type (a vector that is not N real numbers, shape (N,); a dt that is not a

@@ -1,0 +1,121 @@
+"""The observer gain and the sample time of a starter arm file (``derive init``).
+
+W is scaled by the arm's inertia so that the observer rates, the eigenvalues of W J^-1(theta)
+(eq. 24: the observer error e' = B (d - dhat) obeys e'' = -W J^-1 e', eq. a5), spread over the
+joint ranges only as far as J itself does (a light wrist no longer gets the base's gain):
+
+    W = omega Jbar,   Jbar = the mean of J(theta) over configurations within the joint limits,
+
+symmetric and positive definite (a full W, which ``controller.w`` accepts as an n x n array). Its
+unit is J's over time, kg m^2/s = N m s/rad: p = W theta' is a joint torque (eq. 21 adds it to
+G - B u; B dhat = z + p, eq. 22). W J^-1 = omega Jbar J^-1 is similar to a symmetric positive definite
+matrix, so the rates are real and positive, omega at J = Jbar, and spread only as far as J varies
+over the ranges (a constant W cannot do better: the Panda's J varies 228-fold in some direction,
+and the W that minimises the largest rate for the same certificate is within 3 % of this one).
+
+omega is the smallest that the observer certificate (derive.control.certificate, with its split
+past four angles) proves on the speed box, times MARGIN, and at least what puts the geometric mean
+of the smallest and largest rate at FLOOR (rates spread as J does; the largest sets the sample
+time, the smallest how slowly the estimate may follow in the worst pose): the appendix's V
+decays when 2 omega Jbar - J'(theta, theta') > 0 over the box, so the box's numeric supremum for
+W = Jbar (the certificate's own sound form, derive.control.split for 6-7 joints) gives omega; the
+sound decision is then run on the rounded W within FIRST_BUDGET cells, and omega is raised by RAISE
+(BUDGET cells each) until it proves (at most TRIES times; the decision is deterministic, so ``derive check`` with its larger
+budget proves the same W).
+
+The sample time: with the forward-Euler observer step the fast mode steps by I - dt W J^-1, stable
+for dt < 2 / rate_max (derive.control.sampling: the DOBC and NPID limit), and the momentum
+observer's by 1 - dt K (dt < 2 / K); the value written is a round number (1, 2, 2.5, 4 or 5 x 10^k s)
+at most HEADROOM of the smaller of 0.9 x those bounds, and at most 2 ms. These are the limits at
+rest; at speed the sampled loop's limits are lower (the iiwa at its 10 rad/s box: DOBC 0.995 ms
+against 1.0 ms estimated, MOM 1.27 ms against 36 ms), which HEADROOM leaves room for. ``derive check`` and
+``derive show`` print the limits themselves, over the speed box.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from derive.control.certificate import Decision, InertiaModel, ObserverCertificate, Verdict
+
+MARGIN = 1.3         # omega over the smallest the certificate's numeric supremum allows
+RAISE = 1.3          # omega's factor when the sound decision does not prove it within BUDGET cells
+TRIES = 8
+FIRST_BUDGET = 20_000   # cells of the first try (derive check's budget: what proves here proves there)
+BUDGET = 5000        # cells of each later try (omega raised: fewer cells needed)
+FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
+HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
+MAX_SAMPLE_TIME = 2e-3
+SAMPLES = 1024
+DIGITS = 4           # significant digits of W's entries as written
+
+
+@dataclass(frozen=True)
+class StarterGain:
+    """The starter W (n x n, exact as written: DIGITS significant digits) and what it gives.
+
+    omega [1/s]; rates: the smallest and largest eigenvalue of W J^-1 over the samples [1/s];
+    decision: the certificate's on the box at rate 0 (proved, or the last try's); sample_time [s]
+    and the estimated limits it was chosen from (observer [s], momentum [s]); seconds: time taken;
+    floor: omega was set by FLOOR, not raised for the certificate."""
+
+    W: tuple[tuple[float, ...], ...]
+    omega: float
+    rates: tuple[float, float]
+    decision: Decision
+    sample_time: float
+    observer_limit: float
+    momentum_limit: float
+    seconds: float
+    floor: bool = False   # omega is FLOOR's (the rates' geometric mean), not the certificate's need
+
+
+def _round(x: float) -> float:
+    return float(f"{x:.{DIGITS}g}")
+
+
+def round_sample_time(x: float) -> float:
+    """The largest of 1, 2, 2.5, 4, 5 x 10^k not above x (x > 0)."""
+    k = math.floor(math.log10(x))
+    for m in (5.0, 4.0, 2.5, 2.0, 1.0):
+        if m * 10.0 ** k <= x * (1 + 1e-12):
+            return float(f"{m * 10.0 ** k:.3g}")
+    return float(f"{10.0 ** (k - 1) * 5:.3g}")
+
+
+def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: int = BUDGET) -> StarterGain:
+    """W = omega Jbar certified on ``box`` (n speeds, rad/s or m/s), and the sample time (module docstring).
+    ``momentum_gain``: the largest K_i of the momentum observer [1/s]."""
+    start = time.perf_counter()
+    box = np.asarray(box, dtype=float)
+    cert = ObserverCertificate(model, box)
+    q = cert.samples(SAMPLES, exact=True)
+    Js = model.J(q)
+    Jbar = Js.mean(axis=0)
+    Jbar = (Jbar + Jbar.T) / 2
+    Li = np.linalg.inv(np.linalg.cholesky(Js))
+    spread = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, Jbar, Li))   # eigenvalues of Jbar J^-1
+    middle = math.sqrt(float(spread[:, 0].min()) * float(spread[:, -1].max()))
+    sup = cert.speed_supremum(Jbar, box, 0.0, SAMPLES)
+    need = MARGIN / sup if sup > 0 and math.isfinite(sup) else 0.0
+    omega = max(FLOOR / middle, need)
+    floor = omega > need
+    for attempt in range(TRIES):
+        if attempt:
+            omega *= RAISE
+        W = np.array([[_round(omega * x) for x in row] for row in Jbar])
+        W = (W + W.T) / 2
+        dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET if attempt == 0 else budget)
+        if dec.verdict is Verdict.PROVED:
+            break
+    lam = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, W, Li))      # eigenvalues of W J^-1
+    rates = (float(lam[:, 0].min()), float(lam[:, -1].max()))
+    observer = 0.9 * 2.0 / rates[1]
+    momentum = 0.9 * 2.0 / momentum_gain
+    dt = round_sample_time(min(MAX_SAMPLE_TIME, HEADROOM * min(observer, momentum)))
+    return StarterGain(W=tuple(tuple(float(x) for x in row) for row in W), omega=omega, rates=rates, decision=dec,
+                       sample_time=dt, observer_limit=observer, momentum_limit=momentum,
+                       seconds=time.perf_counter() - start, floor=floor and omega == max(FLOOR / middle, need))

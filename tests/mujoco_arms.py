@@ -42,11 +42,14 @@ def arm_copy(folder: Path, name: str, simulation: dict | None = None, friction: 
     <dynamics friction> [N m or N] in the copy (its damping kept); ``extra``: text appended to the arm file."""
     w, dt, substeps = SETTINGS[name]
     text = (DATA / f"{name}.toml").read_text()
-    text = re.sub(r"^w = \[[^\]]*\]", lambda m: "w = [" + ", ".join([repr(w)] * (m.group(0).count(",") + 1)) + "]",
-                  text, flags=re.M)
+    # the starter file's own W (a full matrix, derive init) and its [simulation] give way to the
+    # test's diagonal w and settings above; its speed box too, so the limits are those stated above
+    n = text.count("\n[[motor]]")
+    text = re.sub(r"^w = \[(?:[^\[\]]|\[[^\]]*\])*\]", "w = [" + ", ".join([repr(w)] * n) + "]", text, flags=re.M)
+    text = re.sub(r"^max_joint_speed = .*\n", "", text, flags=re.M)
+    text = re.sub(r"^\[simulation\]\n(?:(?!\[).*\n?)*", "", text, flags=re.M)
     table = {"sample_time": dt, "substeps": substeps, **(simulation or {})}
     if friction is None and "coulomb_friction" not in table:
-        n = text.count("\n[[motor]]")
         table["coulomb_friction"] = list(default_settings(n).coulomb_friction)
     text += "\n[simulation]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in table.items()) + extra
     urdf = (DATA / f"{name}.urdf").read_text()

@@ -7,6 +7,8 @@ MuJoCo's principal-axis inertias allow, PARAM_REL max|theta''| T^2 / 2.
 """
 from __future__ import annotations
 
+import re
+
 import json
 import math
 import sys
@@ -201,8 +203,8 @@ def test_held_joints_are_fixed_where_derive_holds_them(tmp_path, name, tip, held
                         + ", ".join(f"{k} = {v}" for k, v in held.items()) + " }")
     head, *motors = text.split("[[motor]]")
     motors[-1], rest = motors[-1].split("[controller]")
-    w = rest.split("w = [")[1].split(",")[0]
-    rest = rest.replace(rest.split("w = ")[1].split("]")[0] + "]", "[" + ", ".join([w] * kept) + "]")
+    w = re.search(r"^w = \[([^,\]]*)", rest, flags=re.M).group(1)
+    rest = re.sub(r"^w = \[[^\]]*\]", "w = [" + ", ".join([w] * kept) + "]", rest, flags=re.M)
     path = tmp_path / "held.toml"
     path.write_text(head + "[[motor]]" + "[[motor]]".join(motors[:kept]) + "\n[controller]" + rest)
     arm = load_arm(path)

@@ -17,7 +17,7 @@ from derive.model.simspec import default_settings
 
 DATA = Path(__file__).resolve().parent / "data" / "urdf"
 
-# arm -> (observer gain w of every joint [1/s], sample time [s], RK4 steps per sample): the DOBC and
+# arm -> (observer gain w of every joint [N m s/rad], sample time [s], RK4 steps per sample): the DOBC and
 # NPID sample-time limits (derive check) are then 5.3 ms (UR5), 1.23 ms (Panda), 2.15 ms (Kinova,
 # w = 0.05: its light wrist), 2.79 ms (double pendulum, w = 0.5); the Kinova's wrist with the
 # default smooth Coulomb friction decays at 11,400 1/s, beyond RK4 at h = 0.5 ms (h lambda = 5.7 >

@@ -61,7 +61,7 @@ def python_files(d: Derivation, mode: ParamsMode, v: ArmView | None = None) -> d
 
 
 def observer_manifest(d: Derivation) -> dict:
-    """W [1/s] and its structure; for w = "auto" also the box, rate and certificate it was synthesised for."""
+    """W [N m s/rad] and its structure; for w = "auto" also the box, rate and certificate it was synthesised for."""
     out = {"W": [[str(x) for x in d.W.row(i)] for i in range(d.n)], "structure": d.observer.structure,
            "source": "synthesised" if d.synthesis is not None else "stated"}
     syn = d.synthesis

@@ -97,23 +97,26 @@ def entry_key(arm, options: dict[str, object]) -> str:
     return h.hexdigest()
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """``data`` to ``path`` through a temporary file in its folder and os.replace; an error
-    leaves no temporary file and is not raised (a cache that cannot write is only slower)."""
+def _write_atomic(path: Path, data: bytes) -> bool:
+    """``data`` to ``path`` through a temporary file in its folder and os.replace; whether it was
+    written. An error leaves no temporary file and is not raised (a cache that cannot write is
+    only slower)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     except OSError:
-        return
+        return False
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
         os.replace(tmp, path)
+        return True
     except OSError:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        return False
 
 
 class SimCache:
@@ -164,8 +167,7 @@ class SimCache:
                         protocol=pickle.HIGHEST_PROTOCOL)
         except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
             return   # a value that does not pickle: no entry (the next run is a miss, not wrong)
-        _write_atomic(self.path, buf.getvalue())
-        self._dirty = False
+        self._dirty = not _write_atomic(self.path, buf.getvalue())
 
     def figure(self, what: tuple, traces, make: Callable[[], bytes]) -> bytes:
         """The PNG ``make()`` draws from ``traces`` with the arguments ``what``, kept under the

@@ -18,7 +18,7 @@ from derive.codegen.views import ArmView, arm_view, kernel_functions, selftest_v
 from derive.identify.regressor import derive_regressor
 
 REALS = ("double", "float")
-PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # exact versions in pyproject.toml: output depends on them
+PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # output depends on their versions (constraints.txt)
 
 
 def library_files(d: Derivation, real: str, mode: ParamsMode, v: ArmView | None = None) -> dict[str, str]:

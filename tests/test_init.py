@@ -150,3 +150,33 @@ def test_init_then_simulate_on_light_wristed_vendor_arms(tmp_path, name, options
     arm, d, metrics = _first_run(tmp_path, name, *options)
     _tracks(metrics, rms=0.03, peak=0.2)
     assert arm.controller.max_joint_speed is not None and all(m.input_limit for m in arm.motors)
+
+
+def test_init_writes_the_rk4_substeps_a_light_joints_urdf_friction_needs(tmp_path, capsys):
+    """A URDF's <dynamics friction> on a light joint (the double pendulum's, 0.05 N m) is the plant's smooth
+    Coulomb law, whose slope 0.05 / 0.01 rad/s over the joint inertia is a fast mode: derive init writes the
+    substeps that keep RK4 stable there (derive.sim.plant.stiffest_mode), so simulate runs as written, and
+    without them simulate refuses (the trajectories would be wrong)."""
+    import re
+
+    from derive.sim.plant import stiffest_mode
+
+    urdf = _copy(tmp_path, "double_pendulum")
+    urdf.write_text(urdf.read_text().replace('<dynamics damping="0.05" />', '<dynamics damping="0.05" friction="0.05"/>'))
+    assert main(["init", str(urdf)]) == 0
+    path = urdf.with_suffix(".toml")
+    text = path.read_text()
+    substeps = int(re.search(r"^substeps = (\d+)", text, flags=re.M).group(1))
+    arm = derive.load_arm(path)
+    assert arm.simulation.coulomb_friction == (0.05, 0.05) and substeps > 4
+    from dataclasses import replace
+
+    d = derive.derive(arm)
+    assert stiffest_mode(d, arm.simulation)["stable"]                   # the smallest stable count
+    assert not stiffest_mode(d, replace(arm.simulation, substeps=substeps - 1))["stable"]
+    capsys.readouterr()
+    argv = ["simulate", str(path), "--controllers", "npid", "--duration", "0.5", "--out", str(tmp_path / "sim")]
+    assert main(argv) == 0 and "stiffest mode" not in capsys.readouterr().err
+    path.write_text(text.replace(f"substeps = {substeps}", "substeps = 4"))
+    assert main([*argv[:-1], str(tmp_path / "sim2")]) == 2
+    assert "derive: error: simulation.substeps of" in capsys.readouterr().err and not (tmp_path / "sim2").exists()

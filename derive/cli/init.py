@@ -34,6 +34,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from derive.errors import DeriveError, SpecError
+from derive.model.simspec import SimSettings
 
 T2_DEFAULT = "0.2"
 DEFAULT_SPEED = 2.0          # rad/s: the speed box of a joint whose URDF gives no velocity limit (assumption)
@@ -137,7 +138,7 @@ def _g(x: float) -> str:
 
 
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
-                 repaired: tuple[str, ...] = (), gain=None) -> str:
+                 repaired: tuple[str, ...] = (), gain=None, substeps: int | None = None) -> str:
     """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
     links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
     derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
@@ -220,9 +221,14 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         f"# the momentum observer's below 2 / K ({gain.momentum_limit * 1e3:.3g} ms); derive check and derive show "
         "print each",
         "# form's limit over the speed box (with --observer implicit the DOBC and NPID limits are far larger).",
-        "",
     ]
-    return "\n".join(lines)
+    if substeps is not None:
+        lines += [
+            f"substeps = {substeps}" + " " * max(1, 20 - len(str(substeps)))
+            + "# RK4 steps per sample: the plant's stiffest mode at the initial pose (the joints' friction",
+            "# as a smooth Coulomb law, its slope over the joint inertia) needs h lambda <= 2.785",
+        ]
+    return "\n".join(lines + [""])
 
 
 def choose_gain(draft: str, out: Path, chain):
@@ -246,7 +252,23 @@ def choose_gain(draft: str, out: Path, chain):
         raise DeriveError(f"joint {names}: expected a prismatic joint with <limit lower upper> (the observer "
                           "certificate and the sample-time analysis range over its travel), got none")
     box, _ = speed_box(chain)
-    return starter_gain(model, box)
+    return starter_gain(model, box), dyn
+
+
+def rk4_substeps(text: str, out: Path, dyn) -> int:
+    """The RK4 steps per sample the simulation of the arm file ``text`` needs at its nominal
+    parameters (derive.sim.plant.decay_mode: the stiffest mode at the initial pose, a light
+    joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
+    import tomllib
+
+    import sympy as sp
+
+    from derive.model.spec import arm_from_dict
+    from derive.sim.plant import decay_mode
+
+    s = arm_from_dict(tomllib.loads(text), str(out), base_dir=out.resolve().parent).simulation
+    values = {sym: sp.Float(v, 17) for sym, v in dyn.values}
+    return decay_mode(dyn, values, s, s.viscous_friction, s.coulomb_friction)["substeps"]
 
 
 def _write_new(path: Path, text: str) -> None:
@@ -312,8 +334,12 @@ def run(args) -> int:
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
     name = _name(robot.name or urdf.stem, args.name)
     draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired)
-    gain = choose_gain(draft, out, found.chain)
+    gain, dyn = choose_gain(draft, out, found.chain)
     text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain)
+    substeps = rk4_substeps(text, out, dyn)
+    if substeps > SimSettings.substeps:   # the default the file leaves unsaid
+        text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain,
+                            substeps)
     _write_new(out, text)
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)

@@ -37,7 +37,8 @@ def add_arguments(parser) -> None:
                              "added to it (as [simulation] reference_start = \"measured\"): e(0) = 0, so the "
                              "initial estimate dhat(0) is 0, a smooth start")
     parser.add_argument("--force", action="store_true",
-                        help="simulate even when the sample time is above a form's limit (derive check prints it)")
+                        help="simulate even when the sample time is above a form's limit (derive check prints it) or "
+                             "the plant's RK4 step is unstable in its stiffest mode")
     parser.add_argument("--voltage-limits", "--input-limits", dest="voltage_limits", default=None,
                         metavar="U1,U2,...",
                         help="override the motors' input limits (0 = none), for saturation studies: a voltage "
@@ -371,6 +372,15 @@ def run(args) -> int:
             raise DeriveError(f"simulation.sample_time of {arm.name}: " + "; ".join(slow)
                               + ": the controller would diverge; lower sample_time below the limits named, use "
                               "--observer implicit where it allows the sample time, or pass --force")
+        from derive.sim.plant import stiffest_mode
+
+        for name in used:   # RK4 unstable in the plant's stiffest mode: trajectories known to be wrong
+            source = plants.select(arm, name, args.mujoco_friction)
+            d = cached_derivation(arm, cache)
+            stiff = stiffest_mode(d, arm.simulation, source.coulomb(d, arm.simulation))
+            if not stiff["stable"]:
+                raise DeriveError(f"simulation.substeps of {arm.name} = {arm.simulation.substeps}, {name}'s plant: "
+                                  f"{stiffness_words(stiff, arm.simulation)}, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration,
                                     observer=args.observer, plant=args.plant, friction=args.mujoco_friction,

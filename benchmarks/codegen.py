@@ -21,6 +21,12 @@ For the default arm (glasgow_2link), with its parameters baked in:
 A step of the generated code does more than the bare law (finiteness checks,
 the integrator or observer update); the Pinocchio driver computes only u. The
 operation counts are those of each kernel after CasADi's CSE (double).
+
+The Python goal is a ratio in the same run: the slowest step (npid_step or
+dobc_step: argument checks, the kernels, the state update and the returned
+array) within :data:`PY_GOAL_RATIO` times the lambdified bare u (plain float
+arithmetic, no checks). Issue 23's goal, under 5 us where the step took 11.1 us,
+is 5x the lambdify figure of the README's table (0.95 us).
 """
 from __future__ import annotations
 
@@ -52,7 +58,7 @@ REPEAT = 5
 PY_NUMBER = 2_000            # Python calls per timeit repeat
 NPID_GOAL_NS = 35.0
 PIN_SPEEDUP_GOAL = 10.0
-PY_GOAL_US = 10.0
+PY_GOAL_RATIO = 5.0          # slowest Python step per call / the bare law u by sympy.lambdify, same run
 AGREE = 1e-9                 # relative agreement of Pinocchio's u with the generated C's
 HERE = Path(__file__).resolve().parent
 PIN_SOURCE = HERE / "pinocchio_npid.cpp"
@@ -340,6 +346,7 @@ def run() -> Section:
         goals.append(Goal(f"at least {PIN_SPEEDUP_GOAL:g}x faster than Pinocchio C++ (rnea) in the same run",
                           False, f"not built: {reason}"))
     worst = max(py.values())
-    goals.append(Goal(f"Python module under {PY_GOAL_US:g} us per step", worst < PY_GOAL_US,
-                      f"slowest step {us(worst)}"))
+    goals.append(Goal(f"Python module step within {PY_GOAL_RATIO:g}x the bare law u by sympy.lambdify in the same "
+                      "run", worst < PY_GOAL_RATIO * law["lambdify"],
+                      f"slowest step {us(worst)}: {worst / law['lambdify']:.1f}x"))
     return Section(TITLE, (timing, op_table, note, *notes), tuple(goals))

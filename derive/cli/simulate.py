@@ -156,7 +156,8 @@ def plant_markdown(plant: dict) -> list[str]:
               f"2.785{'' if stiff['stable'] else ': UNSTABLE, raise substeps to ' + str(stiff['substeps'])})")
     if plant["name"] == "derive":
         return [f"Plant: derive's, {plant['model']}; {h}.", ""]
-    joints = "the file's" if plant["friction"] == "file" else "derive's, no friction loss or limits"
+    joints = ("the file's (joint limits only an MJCF's: a URDF's <limit lower upper> are not applied, as derive's "
+              "plant has none)" if plant["friction"] == "file" else "derive's, no friction loss or limits")
     lines = [f"Plant: {plant['engine']} integrating `{plant['model']}` ({plant['kind'].upper()}); {h}; joint "
              f"damping, friction loss and limits: {joints}; gravity {plant['gravity']} m/s^2 in MuJoCo's world.", "",
              "| derive joint | MuJoCo joint | actuator | armature [kg m^2] | damping | friction loss |",
@@ -200,7 +201,8 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     A controller whose run fails keeps its samples up to the failure (plotted and
     marked), gets no metrics and a ``failed`` entry; the others are unaffected.
     ``warn(text)``, when given, receives the start's warnings before anything runs
-    (an initial estimate dhat(0) above an input limit: derive.sim.start). ``cache``: the entry of
+    (an initial estimate dhat(0) above an input limit: derive.sim.start) and, after the runs,
+    each joint that left the range its URDF or arm file states (range_warnings). ``cache``: the entry of
     derive.sim.cache that holds the derivation, the compiled loop and the figures (None: none)."""
     from dataclasses import replace
 
@@ -219,6 +221,9 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
             warn(text)
     runs = _runs(d, sources, names, backend_kind, settings, observer, progress, cache)
     traces = runs[0]
+    if warn is not None:
+        for text in range_warnings(d, traces):
+            warn(text)
     unit, word = units_text(arm.input_units), input_word(arm.input_units)
     results = metrics_results(traces, settings, unit, described(main, d, settings))
     files = {f"link{i + 1}.png": cache.figure(("link", i, arm.input_units[i]), traces,
@@ -233,6 +238,29 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     files["metrics.md"] = metrics_markdown(arm.name, results["controllers"], backend_kind, unit, word,
                                            plant=results["plant"], comparison=results.get("comparison")).encode()
     return files, results
+
+
+def range_warnings(d, traces) -> list[str]:
+    """One sentence per controller and joint whose trajectory left the joint's stated range
+    [lower, upper] (rad or m): neither plant applies joint limits (derive's has none; MuJoCo's
+    URDF is read without them, derive.sim.mujoco.source), so such a run is not the arm's."""
+    import numpy as np
+
+    out = []
+    for trace in traces:
+        for i, joint in enumerate(d.dynamics.chain.joints):
+            lo, hi = joint.limits.lower, joint.limits.upper
+            if lo is None or hi is None or lo >= hi or not len(trace.theta):
+                continue
+            x = trace.theta[:, i]
+            k = int(np.argmax(np.maximum(float(lo) - x, x - float(hi))))
+            if x[k] < float(lo) - 1e-9 or x[k] > float(hi) + 1e-9:
+                unit = "rad" if joint.type.rotates else "m"
+                out.append(f"{trace.name}: joint {joint.name!r} leaves its range [{float(lo):g}, {float(hi):g}] "
+                           f"{unit} (reaches {x[k]:.4g} {unit} at t = {trace.t[k]:g} s); the plant applies no "
+                           "joint limits, so this run is not the arm's: lower the reference's amplitude or the "
+                           "disturbance, or start elsewhere ([simulation] initial_theta)")
+    return out
 
 
 def _plots():

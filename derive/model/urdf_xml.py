@@ -105,16 +105,17 @@ class UrdfDocument:
 
 
 def _problem_in_numbers(text: str, count: int) -> str | None:
+    what = f"{count} numbers separated by spaces" if count > 1 else "a number"
     parts = text.split()
     if len(parts) != count:
-        return f"{count} number{'s' if count > 1 else ''} separated by spaces"
+        return what
     for part in parts:
         try:
             x = float(part)
         except ValueError:
-            return f"{count} number{'s' if count > 1 else ''} separated by spaces"
+            return what
         if not math.isfinite(x):
-            return f"{count} finite number{'s' if count > 1 else ''}"
+            return f"{count} finite numbers" if count > 1 else "a finite number"
     return None
 
 
@@ -190,20 +191,20 @@ def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
     return out, notes, findings
 
 
-def _read(r: Reader, value: Any, base_dir: Path) -> bytes | None:
+def _read(r: Reader, value: Any, base_dir: Path, whence: str) -> bytes | None:
     if not isinstance(value, str) or not value:
-        r.bad(FIELD, "the path of a URDF file (relative to the arm file)", value)
+        r.bad(FIELD, f"the path of a URDF file ({whence})", value)
         return None
     path = base_dir / value
     try:
         with open(path, "rb") as stream:
             raw = stream.read(MAX_URDF_BYTES + 1)
     except FileNotFoundError:
-        r.add(FIELD, "a readable URDF file (path relative to the arm file)", f"{show(value)} (no such file: {path})")
+        r.add(FIELD, f"a readable URDF file ({whence})", f"{show(value)} (no such file: {path})")
         return None
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
-        r.add(FIELD, "a readable URDF file (path relative to the arm file)", f"{show(value)} ({why})")
+        r.add(FIELD, f"a readable URDF file ({whence})", f"{show(value)} ({why})")
         return None
     if len(raw) > MAX_URDF_BYTES:
         r.add(FIELD, f"a URDF file of at most {MAX_URDF_BYTES} bytes", f"{show(value)} (a larger file)")
@@ -248,10 +249,12 @@ def _safe_tree(r: Reader, raw: bytes) -> Element | None:
     return root
 
 
-def parse_safely(r: Reader, value: Any, base_dir: Path) -> UrdfDocument | None:
+def parse_safely(r: Reader, value: Any, base_dir: Path,
+                 whence: str = "path relative to the arm file") -> UrdfDocument | None:
     """The URDF file ``value`` names (relative to ``base_dir``) read as described in the
-    module docstring, or None after adding problems (file, XML, parser) to ``r``."""
-    raw = _read(r, value, base_dir)
+    module docstring, or None after adding problems (file, XML, parser) to ``r``; ``whence``
+    says in those messages where the path is from."""
+    raw = _read(r, value, base_dir, whence)
     if raw is None:
         return None
     root = _safe_tree(r, raw)

@@ -93,6 +93,25 @@ def test_init_bad_urdf_is_one_message_nothing_written(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.urdf", "synthetic.urdf"]
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["init", "r.urdf", "--out", "nodir/sub/x.toml"],
+     "derive: error: --out: expected a file in an existing folder, got nodir/sub/x.toml (no folder nodir/sub)"),
+    (["init", "nope.urdf"], "  - urdf: expected a readable URDF file (the path as given on the command line), "
+     "got string 'nope.urdf' (no such file: "),
+    (["init", "r.urdf", "--base", "link1", "--tip", "link1"], "  - --tip: expected a link below the base link "
+     "'link1' (the chain runs from base to tip), got 'link1': base and tip are the same link"),
+])
+def test_init_bad_arguments_are_one_message_naming_the_argument(tmp_path, monkeypatch, capsys, argv, message):
+    """Tester's cases: --out in a folder that does not exist, a URDF that does not exist (said as given on the
+    command line, not relative to an arm file), base and tip the same link: exit 2, nothing written."""
+    shutil.copy(URDF / "double_pendulum.urdf", tmp_path / "r.urdf")
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and err.count("derive: error:") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.urdf"]
+
+
 # -- issue 20: the starter file works as it is ---------------------------------------------------------------------
 def _first_run(tmp_path: Path, name: str, *options: str, duration: str = "12") -> tuple:
     """derive init, the certificate and the limits on the written file, derive simulate: (arm, derivation, metrics)."""

@@ -286,8 +286,11 @@ def run(args) -> int:
     from derive.model.urdf_xml import parse_safely
 
     urdf = Path(args.urdf)
+    if args.out and not Path(args.out).parent.is_dir():   # before reading anything
+        raise DeriveError(f"--out: expected a file in an existing folder, got {args.out} "
+                          f"(no folder {Path(args.out).parent})")
     r = Reader()
-    doc = parse_safely(r, str(urdf.resolve()), Path("/"))
+    doc = parse_safely(r, args.urdf, Path.cwd(), "the path as given on the command line")
     robot = None if doc is None else doc.robot
     if robot is None:
         raise SpecError(str(urdf), [type(p)(p.field.replace("arm.urdf", "urdf"), p.expected, p.given)

@@ -2,6 +2,7 @@
 overwrites, and picks the chain's ends or says which to choose."""
 from __future__ import annotations
 
+import re
 import shutil
 from fractions import Fraction
 from pathlib import Path
@@ -35,7 +36,11 @@ def test_init_writes_an_arm_file_that_loads(tmp_path, capsys):
     assert [p.value for p in arm.parameters if p.symbol.name.startswith("bv")] == [Fraction(1, 20)] * 2
     assert "position [0, 0] rad" in text                 # the URDF's limits, as comments
     assert "nondecreasing" not in text and "derive check certifies the observer on this box" in text
-    assert "derive generate" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "derive generate" in err
+    renamed = ("the URDF's robot name '2dof_planar' is not a name derive can use (a C identifier of lowercase ASCII "
+               "letters, digits and '_'): the arm is named 'arm_2dof_planar' (--name chooses another)")
+    assert f"derive: note: {renamed}" in err and f"\n#   {renamed}\n" in text
     # velocity="0" effort="0": no limits given, so the box is the stated default and u is not clipped
     assert [float(v) for v in arm.controller.max_joint_speed] == [2.0, 2.0]
     assert "joints 1, 2: assumption, 2 rad/s (0.5 m/s if prismatic), the URDF gives no velocity limit" in text
@@ -91,6 +96,23 @@ def test_init_bad_urdf_is_one_message_nothing_written(tmp_path, capsys):
     assert main(["init", str(_copy(tmp_path, "synthetic")), "--tip", "nowhere"]) == 2
     assert "--tip: expected the name of a link of the URDF" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.urdf", "synthetic.urdf"]
+
+
+def test_init_names_a_hostile_robot_name_it_replaced(tmp_path, capsys):
+    """Tester's hostile_name.urdf: a robot name that is a shell command, a path and C comment text, and a
+    newline that would end a TOML comment; init names the arm safely and says so on stderr and in the file."""
+    text = (URDF / "double_pendulum.urdf").read_text(encoding="utf-8")
+    hostile = "../../evil; rm -rf ~ &amp; $(id) `x` &quot;&lt;b&gt;*/ #define&#10;[arm]"
+    urdf = tmp_path / "hostile.urdf"
+    urdf.write_text(re.sub(r'<robot name="[^"]*"', f'<robot name="{hostile}"', text), encoding="utf-8")
+    assert main(["init", str(urdf)]) == 0
+    err = capsys.readouterr().err
+    written = (tmp_path / "hostile.toml").read_text(encoding="utf-8")
+    note = ("the URDF's robot name '../../evil; rm -rf ~ & $(id) `x` \"<b>*/ #define\\n[arm]' is not a name derive "
+            "can use (a C identifier of lowercase ASCII letters, digits and '_'): the arm is named "
+            "'evil_rm_rf_id_x_b_define_arm' (--name chooses another)")
+    assert f"derive: note: {note}" in err and f"\n#   {note}\n" in written
+    assert derive.load_arm(tmp_path / "hostile.toml").name == "evil_rm_rf_id_x_b_define_arm"
 
 
 @pytest.mark.parametrize("argv, message", [

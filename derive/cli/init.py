@@ -55,19 +55,26 @@ def add_arguments(parser) -> None:
                         "with their links into the arm file (default: refuse them)")
 
 
-def _name(robot: str, given: str | None) -> str:
+def _name(robot: str, given: str | None, what: str = "the URDF's robot name") -> tuple[str, str | None]:
+    """The arm's name: ``given`` (--name, checked), else ``robot`` (``what``: where it is from) made a
+    safe C identifier (derive.model.names); with a note giving both names when that changed it."""
     from derive.model.names import name_problem
 
     if given is not None:
         if (why := name_problem(given)) is not None:
             raise DeriveError(f"--name: expected {why}")
-        return given
+        return given, None
     name = re.sub(r"[^a-z0-9_]+", "_", robot.lower()).strip("_")
     name = re.sub(r"_+", "_", name)
     if not name or name[0].isdigit():
         name = f"arm_{name}".rstrip("_")
-    return name if name_problem(name) is None else f"{name[:26]}_arm" if name_problem(f"{name[:26]}_arm") is None \
+    name = name if name_problem(name) is None else f"{name[:26]}_arm" if name_problem(f"{name[:26]}_arm") is None \
         else "my_arm"
+    if name == robot:
+        return name, None
+    shown = repr(robot) if len(robot) <= 100 else f"{robot[:100]!r}... ({len(robot)} characters)"
+    return name, (f"{what} {shown} is not a name derive can use (a C identifier of lowercase "
+                  f"ASCII letters, digits and '_'): the arm is named {name!r} (--name chooses another)")
 
 
 def _ends(robot, base: str | None, tip: str | None) -> tuple[str, str]:
@@ -137,11 +144,12 @@ def _g(x: float) -> str:
 
 
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
-                 repaired: tuple[str, ...] = (), gain=None) -> str:
+                 repaired: tuple[str, ...] = (), gain=None, notes: tuple[str, ...] = ()) -> str:
     """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
     links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
     derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
-    placeholder, for reading the chain back)."""
+    placeholder, for reading the chain back). ``notes``: init's own notes (the name's), written
+    before the chain's."""
     n = chain.n
     box, assumed = speed_box(chain)
     lines = [
@@ -163,7 +171,7 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "",
         "# What reading the URDF did:",
     ]
-    lines += [f"#   {note}" for note in chain.notes] or ["#   nothing to note"]
+    lines += [f"#   {note}" for note in (*notes, *chain.notes)] or ["#   nothing to note"]
     for i, (joint, bv) in enumerate(zip(chain.joints, damping), 1):
         effort = joint.limits.effort
         unit = "N m" if joint.type.rotates else "N"
@@ -313,13 +321,17 @@ def run(args) -> int:
     if out.exists() or out.is_symlink():   # before the minutes the derivation may take
         _write_new(out, "")
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
-    name = _name(robot.name or urdf.stem, args.name)
-    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired)
+    name, renamed = _name(robot.name or urdf.stem, args.name,
+                          "the URDF's robot name" if robot.name else "the URDF file's name")
+    notes = (renamed,) if renamed else ()
+    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
     gain = choose_gain(draft, out, found.chain)
-    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain)
+    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
     _write_new(out, text)
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)
+    for note in notes:
+        print(f"derive: note: {note}", file=sys.stderr)
     for note in found.chain.notes:
         if "inertia repaired" in note:
             print(f"derive: note: {note}", file=sys.stderr)

@@ -100,10 +100,12 @@ def test_init_bad_urdf_is_one_message_nothing_written(tmp_path, capsys):
 
 def test_init_names_a_hostile_robot_name_it_replaced(tmp_path, capsys):
     """Tester's hostile_name.urdf: a robot name that is a shell command, a path and C comment text, and a
-    newline that would end a TOML comment; init names the arm safely and says so on stderr and in the file."""
+    newline that would end a TOML comment; init names the arm safely and says so on stderr and in the file.
+    A base link named with a quote and a backslash is written as an escaped TOML string (was a traceback)."""
     text = (URDF / "double_pendulum.urdf").read_text(encoding="utf-8")
     hostile = "../../evil; rm -rf ~ &amp; $(id) `x` &quot;&lt;b&gt;*/ #define&#10;[arm]"
     urdf = tmp_path / "hostile.urdf"
+    text = text.replace('"base_link"', '"base&quot;\\link"')   # a link name that must be escaped in TOML
     urdf.write_text(re.sub(r'<robot name="[^"]*"', f'<robot name="{hostile}"', text), encoding="utf-8")
     assert main(["init", str(urdf)]) == 0
     err = capsys.readouterr().err
@@ -112,7 +114,9 @@ def test_init_names_a_hostile_robot_name_it_replaced(tmp_path, capsys):
             "can use (a C identifier of lowercase ASCII letters, digits and '_'): the arm is named "
             "'evil_rm_rf_id_x_b_define_arm' (--name chooses another)")
     assert f"derive: note: {note}" in err and f"\n#   {note}\n" in written
-    assert derive.load_arm(tmp_path / "hostile.toml").name == "evil_rm_rf_id_x_b_define_arm"
+    arm = derive.load_arm(tmp_path / "hostile.toml")
+    assert arm.name == "evil_rm_rf_id_x_b_define_arm" and 'base_link = "base\\"\\\\link"' in written
+    assert 'description = "evil_rm_rf_id_x_b_define_arm from hostile.urdf"\n' in written   # no '\\' in C comments
 
 
 @pytest.mark.parametrize("argv, message", [

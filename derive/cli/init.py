@@ -26,6 +26,7 @@ it is relative to the arm file.
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import sys
@@ -143,6 +144,23 @@ def _g(x: float) -> str:
     return f"{x:.{DIGITS}g}"
 
 
+def _string(text: str) -> str:
+    """``text`` as a TOML basic string: a link or file name with a quote, a backslash or a control
+    character stays one string (JSON's escapes are TOML's; U+007F, which JSON leaves, escaped too)."""
+    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def _description(name: str, urdf_name: str, base: str, tip: str) -> str:
+    """The arm's description: its name, the URDF file's and the chain's ends, without the names
+    that could not stand in a generated C comment or docstring (derive.model.fields.text_problem)."""
+    from derive.model.fields import text_problem
+
+    for text in (f"{name} from {urdf_name}, base {base}, tip {tip}", f"{name} from {urdf_name}"):
+        if text_problem(text) is None:
+            return text
+    return f"{name} from a URDF"
+
+
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
                  repaired: tuple[str, ...] = (), gain=None, notes: tuple[str, ...] = ()) -> str:
     """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
@@ -157,16 +175,16 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "# assumptions, marked as such: check them against your hardware. Then: derive generate <this file>",
         "",
         "[arm]",
-        f'name = "{name}"',
-        f'description = "{name} from {urdf_name}, base {base}, tip {tip}"',
-        f'urdf = "{urdf_rel}"',
-        f'base_link = "{base}"',
-        f'tip_link = "{tip}"',
+        f"name = {_string(name)}",
+        f"description = {_string(_description(name, urdf_name, base, tip))}",
+        f"urdf = {_string(urdf_rel)}",
+        f"base_link = {_string(base)}",
+        f"tip_link = {_string(tip)}",
         "gravity = 9.81                  # m/s^2, assumption: Earth's",
         "gravity_direction = [0, 0, -1]  # assumption: the base link's z axis points up",
         'actuation = "torque"            # u is the motor torque [N m]: B = diag(gear_ratio), no back-EMF',
         "# locked = { joint_name = 0.0 } # hold joints (rad or m); joints off the chain are held at 0",
-    ] + ([f"repair_inertia = [{', '.join(chr(34) + x + chr(34) for x in repaired)}]  # their inertias are not "
+    ] + ([f"repair_inertia = [{', '.join(map(_string, repaired))}]  # their inertias are not "
           "physical: moved to the nearest physical ones (see the notes below)"] if repaired else []) + [
         "",
         "# What reading the URDF did:",

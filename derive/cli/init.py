@@ -26,7 +26,6 @@ it is relative to the arm file.
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 import sys
@@ -147,8 +146,12 @@ def _g(x: float) -> str:
 
 def _string(text: str) -> str:
     """``text`` as a TOML basic string: a link or file name with a quote, a backslash or a control
-    character stays one string (JSON's escapes are TOML's; U+007F, which JSON leaves, escaped too)."""
-    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+    character (U+0000-U+001F, U+007F: TOML's \\uXXXX escape) stays one string."""
+    def escape(c: str) -> str:
+        if c in '"\\':
+            return "\\" + c
+        return f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c
+    return '"' + "".join(escape(c) for c in text) + '"'
 
 
 def _description(name: str, urdf_name: str, base: str, tip: str) -> str:

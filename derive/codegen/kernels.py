@@ -205,27 +205,42 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
 
 def momentum_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], dt: Port,
                    params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
-    """The generalized-momentum observer's kernels (derive.control.momentum), form mom:
-    mom(x, m) -> u = u* - B^-1 r, r = K (J theta' - m) (eq. 27 with its estimate), and that
-    estimate dhat = B^-1 r (one kernel for mom_step and mom_estimate: the M4F's 4 KB of flash);
-    mom_next(theta, theta', m, u, dt) -> m + dt (B u + C^T theta' - g - F theta' + r) (forward
-    Euler of m'); mom_init(theta, theta') -> m(0) = J theta' (so r(0) = 0)."""
+    """The generalized-momentum observer's kernels (derive.control.momentum), form mom,
+    J theta' and C^T theta' by one recursion (derive.dynamics.momentum), neither J nor C formed:
+    mom(x, m) -> u = u* - B^-1 r, r = K (J theta' - m) (eq. 27 with its estimate), that
+    estimate dhat = B^-1 r, and m_rate = B u* + C^T theta' - g - F theta', the rate
+    m' = B u + C^T theta' - g - F theta' + r at the law's u (B u + r = B u*); one kernel for
+    mom_step and mom_estimate (the M4F's 4 KB of flash);
+    mom_next(m, m_rate, u_law, u, dt) -> m + dt (m_rate + B (u - u_law)), forward Euler with the
+    applied u (B (u - u_law): the voltage limit's share); mom_init(theta, theta') -> m(0) = J theta'
+    (so r(0) = 0)."""
     mom = d.momentum
     value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
     s = d.dynamics.sym
+    n = d.n
     theta, dtheta = x[0], x[1]
     m = Port("m", mom.m, "momentum observer state: the integral m of derive.control.momentum")
+    B = value(d.dynamics.B)
+    u_star = d.measured(value(d.mpc.u_star_rnea))
+    rate = tuple(sp.Symbol(f"mrate{i + 1}", real=True) for i in range(n))
+    law = tuple(sp.Symbol(f"ulaw{i + 1}", real=True) for i in range(n))
+    step = sp.Matrix(mom.m) + dt.items[0] * (sp.Matrix(rate) + B * (sp.Matrix(s.u) - sp.Matrix(law)))
     return (
         KernelSpec("mom", (*x, m, *params), (
-            Port("u", _flat(d.measured(value(d.mpc.u_star_rnea)) - value(mom.dhat)),
+            Port("u", _flat(u_star - value(mom.dhat_rnea)),
                  "u* - B^-1 r, r = K (J theta' - m): eq. 27 with the momentum estimate"),
-            Port("dhat", _flat(value(mom.dhat)), "dhat = B^-1 K (J theta' - m)")),
-            "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat"),
-        KernelSpec("mom_next", (theta, dtheta, m, Port("u", s.u, "applied voltages"), dt, *params), (
-            Port("m_next", _flat(sp.Matrix(mom.m) + dt.items[0] * value(mom.m_rate)),
-                 "m + dt (B u + C^T theta' - g - F theta' + K (J theta' - m))"),),
-            "Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r"),
+            Port("dhat", _flat(value(mom.dhat_rnea)), "dhat = B^-1 K (J theta' - m)"),
+            Port("m_rate", _flat(B * u_star + value(mom.beta_rnea)),
+                 "B u* + C^T theta' - g - F theta': m' at the law's u")),
+            "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, "
+            "and the observer's rate m' at that u"),
+        KernelSpec("mom_next", (m, Port("m_rate", rate, "the mom kernel's m_rate"),
+                                Port("u_law", law, "the mom kernel's u (before the limits)"),
+                                Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("m_next", _flat(step),
+                 "m + dt (m_rate + B (u - u_law)) = m + dt (B u + C^T theta' - g - F theta' + K (J theta' - m))"),),
+            "Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r"),
         KernelSpec("mom_init", (theta, dtheta, *params), (
-            Port("m0", _flat(value(mom.p)), "m(0) = J(theta0) theta0': r(0) = 0"),),
+            Port("m0", _flat(value(mom.p_rnea)), "m(0) = J(theta0) theta0': r(0) = 0"),),
             "Momentum observer state at the first sample: the generalized momentum J theta'"),
     )

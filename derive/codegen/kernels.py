@@ -18,6 +18,7 @@ from enum import Enum
 
 import sympy as sp
 
+from derive.codegen.ldl import factor_symbols, ldl_factor, ldl_solve
 from derive.dynamics.dag import Memo, free_symbols
 from derive.errors import CoverageError
 from derive.control.pipeline import Derivation
@@ -142,10 +143,8 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     npid = d.npid
     dhat0 = law(npid.dhat0)
     W, B = d.observer.W, d.dynamics.B
-    y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
     J = value(d.dynamics.J)
-    A = J + dt_sym * value(W) if implicit else J      # backward Euler: J + dt W
-    solve = LinearSolve(y, A, value(d.observer.J_solve_rhs))
+    A = J + dt_sym * value(W)      # backward Euler: J + dt W
     z0 = value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)
     if implicit:
         xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
@@ -167,14 +166,11 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         init_inputs = (*x[:4], dt, *params)
         init_doc = ("Observer state giving the sampled initial estimate dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)), "
                     "W_dt = W (J + dt W)^-1 J (eq. 30 for the backward-Euler step, not 31)")
-        observer_doc = ("Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
-                        "(J + dt W) y = G - B u - W theta' - z solved numerically")
     else:
         npid_u, npid_solves, npid_doc = law(npid.u_npid_rnea), (), "u = P e + D e' + I int e + N, eq. 34"
         z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),)
         init_solves, init_inputs = (), (*x[:4], *params)
         init_doc = "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"
-        observer_doc = "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically"
     return (
         KernelSpec("gains", (theta, *params), (
             # not P, D, I: C99's <complex.h> defines I (generated names are never one capital)
@@ -188,18 +184,74 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
             Port("u", _flat(npid_u), npid_doc),
             Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
             "Nonlinear PID predictive control law (eq. 34-38) and its integrator step", npid_solves),
-        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc_rnea)), "u* - dhat, eq. 27"),),
-                   "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
-        KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
-            Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
-                 "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21" if implicit
-                 else "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
-            observer_doc, (solve,)),
+        *(observer_specs(d, mode, x, z, dt, params) if implicit else explicit_observer_specs(d, mode, x, z, dt, params)),
         KernelSpec("dobc_init", init_inputs, z0_outputs, init_doc, init_solves),
         KernelSpec("dhat", (dtheta, z, *params), (
             Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
             "Disturbance estimate of the observer state (eq. 22)"),
         *momentum_specs(d, mode, x, dt, params),
+    )
+
+
+def observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port, dt: Port,
+                   params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
+    """The DOBC's law and backward-Euler observer step (``--observer implicit``, kernel_specs):
+    dobc(x, z) -> u; observer(theta, theta', z, u, dt) -> z + dt W y, (J + dt W) y = G - B u - W theta' - z
+    (J + dt W is not symmetric for a full W: a general solve)."""
+    value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
+    s, n, dts = d.dynamics.sym, d.n, dt.items[0]
+    W = value(d.observer.W)
+    y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
+    solve = LinearSolve(y, value(d.dynamics.J) + dts * W, value(d.observer.J_solve_rhs))
+    return (
+        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))),
+                                                   "u* - dhat, eq. 27"),),
+                   "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
+        KernelSpec("observer", (x[0], x[1], z, Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dts * W * sp.Matrix(y)),
+                 "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21"),),
+            "Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
+            "(J + dt W) y = G - B u - W theta' - z solved numerically", (solve,)),
+    )
+
+
+def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port, dt: Port,
+                            params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
+    """The DOBC's law and forward-Euler observer step: dobc(x, z) -> u, a, ldl;
+    observer(z, a, ldl, u_law, u, dt) -> z_next.
+
+    The observer step z + dt W y, J y = G - B u - W theta' - z (eq. 21, 24), fed the applied u,
+    is computed from the law's quantities: under the composite law u_law = B^-1 (J a + G) - B^-1
+    (z + W theta') (eq. 22, 27, a = C^-1 (K1 e + K2 e' + yd'')) the right-hand side is
+    G - B u_law - W theta' - z = -J a (the step behind eq. 28-29), so
+
+        y = -a - J^-1 B (u - u_law),
+
+    the second term the voltage limit's share (zero while no joint is clipped). J^-1 is applied
+    by the LDL^T factor of the symmetric positive definite J (derive.codegen.ldl), which the law's
+    kernel computes from theta and passes on: no general solve, and theta's sines and cosines
+    once per step."""
+    value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
+    s, n, dts = d.dynamics.sym, d.n, dt.items[0]
+    W, B = value(d.observer.W), value(d.dynamics.B)
+    a = tuple(sp.Symbol(f"accel{i + 1}", real=True) for i in range(n))
+    law = tuple(sp.Symbol(f"ulaw{i + 1}", real=True) for i in range(n))
+    factor = factor_symbols(n)
+    y = -sp.Matrix(a) - ldl_solve(factor, B * (sp.Matrix(s.u) - sp.Matrix(law)))
+    return (
+        KernelSpec("dobc", (*x, z, *params), (
+            Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))), "u* - dhat, eq. 27"),
+            Port("a", _flat(d.measured(value(d.mpc.a))), "a = C^-1 (K1 e + K2 e' + yd''): B u* = J a + G"),
+            Port("ldl", ldl_factor(value(d.dynamics.J)), "J = L D L^T: L's lower entries by rows, D^-1")),
+            "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a "
+            "and the LDL^T factor of J(theta) for the observer step"),
+        KernelSpec("observer", (z, Port("a", a, "the dobc kernel's a"), Port("ldl", factor, "the dobc kernel's ldl"),
+                                Port("u_law", law, "the dobc kernel's u (before the limits)"),
+                                Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dts * W * y),
+                 "z + dt z', z' = W J^-1 (G - B u - p - z) = W (-a - J^-1 B (u - u_law)), eq. 21"),),
+            "Disturbance observer step (eq. 21, 24), forward Euler with the applied u: "
+            "J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J"),
     )
 
 

@@ -98,8 +98,9 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     """The kernels of an arm's controller (shapes for n joints, row-major).
 
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
-    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
-    observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
+    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22), with the law's
+    acceleration a and the LDL^T factor of J; observer(z, a, ldl, u_law, u, dt) -> z_next (eq. 21,
+    fed the applied u: :func:`explicit_observer_specs`); dobc_init(x) -> z(0)
     from the derived dhat(0) (implicit: dobc_init(x, dt) -> z(0), u0); dhat(theta', z) -> the estimate dhat (eq. 22);
     x = (theta, theta', yd, yd', yd''), p = parameters
     (runtime). The discretisation is part of the maths: forward Euler,
@@ -107,7 +108,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     (an integrator held at a voltage limit keeps int_e).
 
     ``observer = "implicit"`` (derive.control.sampling's module docstring): the
-    observer kernel takes the backward-Euler step of eq. (21) over the interval
+    observer kernel (theta, theta', z, u, dt) takes the backward-Euler step of eq. (21) over the interval
     that just ended, (J + dt W) y = G - B u - W theta' - z with the new
     measurement and the voltage u held over the interval, z_next = z + dt W y,
     and the glue applies the DOBC law to z_next. The NPID law matched to it is
@@ -242,7 +243,7 @@ def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...]
         KernelSpec("dobc", (*x, z, *params), (
             Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))), "u* - dhat, eq. 27"),
             Port("a", _flat(d.measured(value(d.mpc.a))), "a = C^-1 (K1 e + K2 e' + yd''): B u* = J a + G"),
-            Port("ldl", ldl_factor(value(d.dynamics.J)), "J = L D L^T: L's lower entries by rows, D^-1")),
+            Port("ldl", ldl_factor(value(d.dynamics.J)), "J = L D L^T: -L's lower entries by rows, -D^-1")),
             "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a "
             "and the LDL^T factor of J(theta) for the observer step"),
         KernelSpec("observer", (z, Port("a", a, "the dobc kernel's a"), Port("ldl", factor, "the dobc kernel's ldl"),

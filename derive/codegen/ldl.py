@@ -28,25 +28,31 @@ def _lower(n: int) -> list[tuple[int, int]]:
     return [(i, j) for i in range(n) for j in range(i)]
 
 
+def _product(a: sp.Expr, b: sp.Expr) -> sp.Expr:
+    """a b as written (SymPy would merge the factors of a and b, losing the shared ones)."""
+    return sp.Mul(a, b, evaluate=False)
+
+
 @keep_sums
 def ldl_factor(A: sp.Matrix) -> tuple[sp.Expr, ...]:
-    """The factor of the symmetric positive definite A (n x n, its lower triangle read):
-    L's strictly lower entries row by row, then the n entries of D^-1."""
+    """The factor of the symmetric positive definite A (n x n, its lower triangle read), negated:
+    -L's strictly lower entries row by row, then the n entries of -D^-1. The signs are exact;
+    they keep each entry one product: with -1/d_j CasADi keeps LD_ij (-1/d_j) a product, where
+    it would write LD_ij (1/d_j) as the quotient LD_ij / d_j (n (n - 1) / 2 divisions more)."""
     n = A.rows
-    L = [[sp.S.Zero] * n for _ in range(n)]
+    NL = [[sp.S.Zero] * n for _ in range(n)]   # -L
     LD = [[sp.S.Zero] * n for _ in range(n)]   # L_ik D_k, shared by the rows below
-    dinv = [sp.S.Zero] * n
+    ninv = [sp.S.Zero] * n                     # -1/D_j
 
-    def dot(i: int, j: int) -> sp.Expr:   # sum_k<j LD_ik L_jk, products kept as written
-        return sp.Add(*(sp.Mul(LD[i][k], L[j][k], evaluate=False) for k in range(j)))
+    def rest(i: int, j: int) -> sp.Expr:   # A_ij - sum_k<j L_ik D_k L_jk
+        return sp.Add(A[i, j], *(_product(LD[i][k], NL[j][k]) for k in range(j)))
 
     for j in range(n):
-        dinv[j] = 1 / (A[j, j] - dot(j, j))
+        ninv[j] = -1 / rest(j, j)
         for i in range(j + 1, n):
-            LD[i][j] = A[i, j] - dot(i, j)
-            # one rounding: LD / d (CasADi writes a product with 1 / d as that quotient)
-            L[i][j] = sp.Mul(LD[i][j], dinv[j], evaluate=False)
-    return tuple(L[i][j] for i, j in _lower(n)) + tuple(dinv)
+            LD[i][j] = rest(i, j)
+            NL[i][j] = _product(LD[i][j], ninv[j])
+    return tuple(NL[i][j] for i, j in _lower(n)) + tuple(ninv)
 
 
 def factor_symbols(n: int, prefix: str = "ldl") -> tuple[sp.Symbol, ...]:
@@ -56,14 +62,15 @@ def factor_symbols(n: int, prefix: str = "ldl") -> tuple[sp.Symbol, ...]:
 
 @keep_sums
 def ldl_solve(factor, b) -> sp.Matrix:
-    """x with L D L^T x = b (n x 1), ``factor`` as :func:`ldl_factor` gives it."""
+    """x with L D L^T x = b (n x 1), ``factor`` (-L, -D^-1) as :func:`ldl_factor` gives it:
+    L y = b, then L^T x = D^-1 y."""
     n = len(b)
-    lower = dict(zip(_lower(n), factor))
-    dinv = factor[n * (n - 1) // 2:]
+    neg_lower = dict(zip(_lower(n), factor))
+    ninv = factor[n * (n - 1) // 2:]
     y = [sp.S.Zero] * n
     for i in range(n):
-        y[i] = b[i] - sum((lower[i, k] * y[k] for k in range(i)), sp.S.Zero)
+        y[i] = sp.Add(b[i], *(_product(neg_lower[i, k], y[k]) for k in range(i)))
     x = [sp.S.Zero] * n
     for i in reversed(range(n)):
-        x[i] = y[i] * dinv[i] - sum((lower[k, i] * x[k] for k in range(i + 1, n)), sp.S.Zero)
+        x[i] = sp.Add(*(_product(neg_lower[k, i], x[k]) for k in range(i + 1, n))) - _product(y[i], ninv[i])
     return sp.Matrix(x)

@@ -330,8 +330,10 @@ def _kernel_npid(theta, dtheta, yd, dyd, ddyd, int_e, dt):
 
 
 def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
-    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27); 52 operations."""
+    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step; 63 operations."""
     u = [0.0] * 2
+    a = [0.0] * 2
+    ldl = [0.0] * 3
     a0 = -14.782608695652174
     a1 = dtheta[0]
     a2 = z[0]
@@ -350,49 +352,49 @@ def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
     a8 = 0.10659
     a9 = ddyd[0]
     a10 = ddyd[1]
-    a10 = a9 + a10
-    a11 = 3.0
-    a12 = dyd[0]
-    a12 = a12 - a1
-    a12 = a11 * a12
-    a10 = a10 + a12
-    a13 = dyd[1]
-    a13 = a13 - a5
-    a11 = a11 * a13
-    a10 = a10 + a11
-    a11 = 4.8
-    a13 = yd[0]
-    a14 = theta[0]
-    a13 = a13 - a14
-    a13 = a11 * a13
-    a10 = a10 + a13
-    a14 = yd[1]
-    a14 = a14 - a6
-    a11 = a11 * a14
-    a10 = a10 + a11
-    a11 = a8 * a10
+    a11 = a9 + a10
+    a12 = 3.0
+    a13 = dyd[0]
+    a13 = a13 - a1
+    a13 = a12 * a13
+    a11 = a11 + a13
+    a14 = dyd[1]
+    a14 = a14 - a5
+    a12 = a12 * a14
+    a11 = a11 + a12
+    a14 = 4.8
+    a15 = yd[0]
+    a16 = theta[0]
+    a15 = a15 - a16
+    a15 = a14 * a15
+    a11 = a11 + a15
+    a16 = yd[1]
+    a16 = a16 - a6
+    a14 = a14 * a16
+    a11 = a11 + a14
+    a16 = a8 * a11
     a6 = _cos(a6)
-    a11 = a11 * a6
-    a4 = a4 + a11
+    a16 = a16 * a6
+    a4 = a4 + a16
     a4 = a3 * a4
-    a11 = 0.019617647058823528
-    a11 = a11 * a1
-    a4 = a4 + a11
-    a11 = a1 * a1
-    a11 = a3 * a11
-    a11 = a11 * a7
-    a9 = a9 + a12
+    a16 = 0.019617647058823528
+    a16 = a16 * a1
+    a4 = a4 + a16
+    a16 = a1 * a1
+    a16 = a3 * a16
+    a16 = a16 * a7
     a9 = a9 + a13
+    a9 = a9 + a15
     a3 = a3 * a9
     a3 = a3 * a6
-    a11 = a11 + a3
-    a8 = a8 * a11
+    a16 = a16 + a3
+    a8 = a8 * a16
     a4 = a4 + a8
-    a11 = 0.14748053333333333
-    a11 = a11 * a9
-    a4 = a4 + a11
-    a11 = 0.03181613333333334
-    a11 = a11 * a10
+    a16 = 0.14748053333333333
+    a16 = a16 * a9
+    a4 = a4 + a16
+    a16 = 0.03181613333333334
+    a11 = a16 * a11
     a4 = a4 + a11
     a2 = a2 * a4
     a0 = a0 + a2
@@ -411,79 +413,76 @@ def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
     a1 = a1 * a2
     a0 = a0 + a1
     u[1] = a0
-    return u
+    a[0] = a9
+    a10 = a10 + a12
+    a10 = a10 + a14
+    a[1] = a10
+    a10 = 0.0405042
+    a10 = a10 * a6
+    a10 = a16 + a10
+    a14 = -1.0
+    a12 = 0.17929666666666666
+    a9 = 0.0810084
+    a9 = a9 * a6
+    a12 = a12 + a9
+    a12 = a14 / a12
+    a9 = a10 * a12
+    ldl[0] = a9
+    ldl[1] = a12
+    a10 = a10 * a9
+    a16 = a16 + a10
+    a14 = a14 / a16
+    ldl[2] = a14
+    return u, a, ldl
 
 
-def _kernel_observer(theta, dtheta, z, u, dt):
-    """Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically; 43 operations."""
+def _kernel_observer(z, a, ldl, u_law, u, dt):
+    """Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J; 21 operations."""
     z_next = [0.0] * 2
     a0 = z[0]
-    a1 = 0.03181613333333334
-    a2 = 0.17929666666666666
-    a3 = 0.0810084
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a3 = a3 * a5
+    a1 = dt[0]
+    a2 = -0.06764705882352941
+    a3 = u_law[0]
+    a2 = a2 * a3
+    a3 = 0.06764705882352941
+    a4 = u[0]
+    a3 = a3 * a4
     a2 = a2 + a3
-    a3 = a1 * a2
-    a6 = 0.0405042
-    a5 = a6 * a5
-    a5 = a1 + a5
-    a7 = a5 * a5
-    a3 = a3 - a7
-    a1 = a1 / a3
-    a7 = -0.9803823529411765
-    a8 = dtheta[0]
-    a7 = a7 * a8
-    a7 = a7 - a0
-    a9 = -0.06764705882352941
-    a10 = u[0]
-    a9 = a9 * a10
-    a7 = a7 + a9
-    a9 = -0.0405042
-    a10 = dtheta[1]
-    a11 = a8 + a10
-    a11 = a11 * a11
-    a9 = a9 * a11
-    a4 = _sin(a4)
-    a9 = a9 * a4
-    a7 = a7 + a9
-    a9 = a8 * a8
-    a6 = a6 * a9
-    a6 = a6 * a4
-    a7 = a7 + a6
-    a1 = a1 * a7
-    a5 = a5 / a3
-    a4 = -1.9995864
-    a4 = a4 * a10
-    a10 = z[1]
-    a8 = a8 + a10
-    a4 = a4 - a8
-    a8 = -0.0088
-    a9 = u[1]
-    a8 = a8 * a9
-    a4 = a4 + a8
-    a4 = a4 + a6
-    a6 = a5 * a4
-    a1 = a1 - a6
-    a6 = dt[0]
-    a1 = a1 * a6
-    a0 = a0 + a1
+    a3 = ldl[1]
+    a3 = a2 * a3
+    a4 = a[0]
+    a3 = a3 - a4
+    a4 = ldl[0]
+    a5 = -0.0088
+    a6 = u_law[1]
+    a5 = a5 * a6
+    a6 = 0.0088
+    a7 = u[1]
+    a6 = a6 * a7
+    a5 = a5 + a6
+    a2 = a4 * a2
+    a5 = a5 + a2
+    a2 = ldl[2]
+    a6 = a5 * a2
+    a4 = a4 * a6
+    a3 = a3 + a4
+    a3 = a1 * a3
+    a0 = a0 + a3
     z_next[0] = a0
-    a10 = a10 + a1
-    a2 = a2 / a3
-    a2 = a2 * a4
-    a5 = a5 * a7
+    a0 = z[1]
+    a0 = a0 + a3
+    a1 = a1 + a1
+    a2 = a2 * a5
+    a5 = a[1]
     a2 = a2 - a5
-    a2 = a2 + a2
-    a2 = a2 * a6
-    a10 = a10 + a2
-    z_next[1] = a10
+    a1 = a1 * a2
+    a0 = a0 + a1
+    z_next[1] = a0
     return z_next
 
 
 def _kernel_dobc_init(theta, dtheta, yd, dyd):
-    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 12 operations."""
+    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 11 operations."""
     z0 = [0.0] * 2
     a0 = -3.0
     a1 = yd[0]
@@ -491,24 +490,23 @@ def _kernel_dobc_init(theta, dtheta, yd, dyd):
     a1 = a1 - a2
     a0 = a0 * a1
     a1 = dyd[0]
-    a2 = a0 - a1
-    z0[0] = a2
-    a2 = -6.0
-    a3 = yd[1]
-    a4 = theta[1]
-    a3 = a3 - a4
-    a2 = a2 * a3
-    a2 = a2 - a1
-    a2 = a2 + a0
-    a0 = -2.0
-    a1 = dtheta[1]
-    a3 = a0 * a1
-    a2 = a2 + a3
+    a0 = a0 - a1
+    z0[0] = a0
+    a1 = -6.0
+    a2 = yd[1]
+    a3 = theta[1]
+    a2 = a2 - a3
+    a1 = a1 * a2
+    a0 = a0 + a1
+    a1 = -2.0
+    a2 = dtheta[1]
+    a3 = a1 * a2
+    a0 = a0 + a3
     a3 = dyd[1]
-    a3 = a3 - a1
-    a0 = a0 * a3
-    a2 = a2 + a0
-    z0[1] = a2
+    a3 = a3 - a2
+    a1 = a1 * a3
+    a0 = a0 + a1
+    z0[1] = a0
     return z0
 
 
@@ -533,171 +531,145 @@ def _kernel_dhat(dtheta, z):
 
 
 def _kernel_mom(theta, dtheta, yd, dyd, ddyd, m):
-    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat; 62 operations."""
+    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, and the observer's rate m' at that u; 70 operations."""
     u = [0.0] * 2
     dhat = [0.0] * 2
+    m_rate = [0.0] * 2
     a0 = -739.1304347826087
-    a1 = dtheta[0]
-    a2 = 0.17929666666666666
-    a3 = 0.0810084
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a3 = a3 * a5
-    a2 = a2 + a3
-    a2 = a1 * a2
-    a3 = m[0]
-    a2 = a2 - a3
-    a3 = dtheta[1]
-    a6 = 0.03181613333333334
-    a7 = 0.0405042
-    a7 = a7 * a5
-    a7 = a6 + a7
-    a8 = a3 * a7
-    a2 = a2 + a8
-    a0 = a0 * a2
+    a1 = 0.14748053333333333
+    a2 = dtheta[0]
+    a3 = a1 * a2
+    a4 = m[0]
+    a3 = a3 - a4
+    a4 = 0.03181613333333334
+    a5 = dtheta[1]
+    a6 = a2 + a5
+    a7 = a4 * a6
+    a3 = a3 + a7
+    a8 = 0.0405042
+    a9 = a8 * a2
+    a10 = theta[1]
+    a11 = _cos(a10)
+    a9 = a9 * a11
+    a3 = a3 + a9
+    a8 = a8 * a6
+    a8 = a8 * a11
+    a3 = a3 + a8
+    a0 = a0 * a3
     a8 = 14.782608695652174
-    a9 = 0.38
-    a10 = -0.10659
-    a11 = a1 + a3
-    a11 = a11 * a11
-    a10 = a10 * a11
-    a11 = _sin(a4)
-    a10 = a10 * a11
-    a12 = 0.10659
-    a13 = ddyd[0]
-    a14 = ddyd[1]
-    a14 = a13 + a14
-    a15 = 3.0
-    a16 = dyd[0]
-    a16 = a16 - a1
-    a16 = a15 * a16
-    a14 = a14 + a16
-    a17 = dyd[1]
-    a17 = a17 - a3
-    a15 = a15 * a17
-    a14 = a14 + a15
-    a15 = 4.8
-    a17 = yd[0]
-    a18 = theta[0]
-    a17 = a17 - a18
-    a17 = a15 * a17
-    a14 = a14 + a17
-    a18 = yd[1]
-    a18 = a18 - a4
-    a15 = a15 * a18
-    a14 = a14 + a15
-    a15 = a12 * a14
-    a15 = a15 * a5
-    a10 = a10 + a15
-    a10 = a9 * a10
-    a15 = 0.019617647058823528
-    a15 = a15 * a1
-    a10 = a10 + a15
-    a15 = a1 * a1
-    a15 = a9 * a15
-    a15 = a15 * a11
-    a13 = a13 + a16
-    a13 = a13 + a17
-    a9 = a9 * a13
-    a9 = a9 * a5
-    a15 = a15 + a9
-    a12 = a12 * a15
-    a10 = a10 + a12
-    a15 = 0.14748053333333333
-    a15 = a15 * a13
-    a10 = a10 + a15
-    a14 = a6 * a14
-    a10 = a10 + a14
-    a8 = a8 * a10
+    a12 = 0.38
+    a13 = -0.10659
+    a14 = a6 * a6
+    a13 = a13 * a14
+    a14 = _sin(a10)
+    a13 = a13 * a14
+    a15 = 0.10659
+    a16 = ddyd[0]
+    a17 = ddyd[1]
+    a17 = a16 + a17
+    a18 = 3.0
+    a19 = dyd[0]
+    a19 = a19 - a2
+    a19 = a18 * a19
+    a17 = a17 + a19
+    a20 = dyd[1]
+    a20 = a20 - a5
+    a18 = a18 * a20
+    a17 = a17 + a18
+    a18 = 4.8
+    a20 = yd[0]
+    a21 = theta[0]
+    a20 = a20 - a21
+    a20 = a18 * a20
+    a17 = a17 + a20
+    a21 = yd[1]
+    a21 = a21 - a10
+    a18 = a18 * a21
+    a17 = a17 + a18
+    a18 = a15 * a17
+    a18 = a18 * a11
+    a13 = a13 + a18
+    a13 = a12 * a13
+    a18 = 0.019617647058823528
+    a18 = a18 * a2
+    a18 = a13 + a18
+    a21 = a2 * a2
+    a21 = a12 * a21
+    a21 = a21 * a14
+    a16 = a16 + a19
+    a16 = a16 + a20
+    a12 = a12 * a16
+    a12 = a12 * a11
+    a21 = a21 + a12
+    a15 = a15 * a21
+    a18 = a18 + a15
+    a1 = a1 * a16
+    a18 = a18 + a1
+    a4 = a4 * a17
+    a18 = a18 + a4
+    a8 = a8 * a18
     a0 = a0 + a8
     u[0] = a0
     a0 = -5681.818181818182
-    a6 = a6 * a3
     a8 = m[1]
-    a6 = a6 - a8
-    a1 = a1 * a7
-    a6 = a6 + a1
-    a0 = a0 * a6
-    a1 = 113.63636363636364
-    a7 = 0.0004136
-    a7 = a7 * a3
-    a7 = a7 + a12
-    a7 = a7 + a14
-    a1 = a1 * a7
-    a0 = a0 + a1
+    a7 = a7 - a8
+    a7 = a7 + a9
+    a0 = a0 * a7
+    a9 = 113.63636363636364
+    a8 = 0.0004136
+    a8 = a8 * a5
+    a8 = a8 + a15
+    a8 = a8 + a4
+    a9 = a9 * a8
+    a0 = a0 + a9
     u[1] = a0
     a0 = 739.1304347826087
-    a0 = a0 * a2
+    a0 = a0 * a3
     dhat[0] = a0
     a0 = 5681.818181818182
-    a0 = a0 * a6
+    a0 = a0 * a7
     dhat[1] = a0
-    return u, dhat
+    a13 = a13 + a15
+    a13 = a13 + a1
+    a13 = a13 + a4
+    m_rate[0] = a13
+    a15 = a15 + a4
+    a4 = -0.0405042
+    a4 = a4 * a2
+    a4 = a4 * a6
+    a4 = a4 * a14
+    a15 = a15 + a4
+    m_rate[1] = a15
+    return u, dhat, m_rate
 
 
-def _kernel_mom_next(theta, dtheta, m, u, dt):
-    """Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 43 operations."""
+def _kernel_mom_next(m, m_rate, u_law, u, dt):
+    """Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 12 operations."""
     m_next = [0.0] * 2
     a0 = m[0]
     a1 = dt[0]
-    a2 = 50.0
-    a3 = dtheta[0]
-    a4 = 0.17929666666666666
-    a5 = 0.0810084
-    a6 = theta[1]
-    a7 = _cos(a6)
-    a5 = a5 * a7
-    a4 = a4 + a5
-    a4 = a3 * a4
-    a4 = a4 - a0
-    a5 = dtheta[1]
-    a8 = 0.03181613333333334
-    a9 = 0.0405042
-    a7 = a9 * a7
-    a7 = a8 + a7
-    a10 = a5 * a7
-    a4 = a4 + a10
-    a4 = a2 * a4
-    a10 = -0.019617647058823528
-    a10 = a10 * a3
-    a4 = a4 + a10
-    a10 = 0.06764705882352941
-    a11 = u[0]
-    a10 = a10 * a11
-    a4 = a4 + a10
-    a10 = -0.0405042
-    a11 = a3 + a5
-    a12 = a10 * a11
-    a6 = _sin(a6)
-    a12 = a12 * a6
-    a9 = a9 * a3
-    a13 = a9 * a6
-    a12 = a12 + a13
-    a12 = a3 * a12
-    a4 = a4 + a12
-    a9 = a9 * a5
-    a9 = a9 * a6
-    a4 = a4 + a9
-    a4 = a1 * a4
-    a0 = a0 + a4
+    a2 = m_rate[0]
+    a3 = -0.06764705882352941
+    a4 = u_law[0]
+    a3 = a3 * a4
+    a2 = a2 + a3
+    a3 = 0.06764705882352941
+    a4 = u[0]
+    a3 = a3 * a4
+    a2 = a2 + a3
+    a2 = a1 * a2
+    a0 = a0 + a2
     m_next[0] = a0
     a0 = m[1]
-    a8 = a8 * a5
-    a8 = a8 - a0
-    a7 = a3 * a7
-    a8 = a8 + a7
-    a2 = a2 * a8
-    a8 = -0.0004136
-    a8 = a8 * a5
-    a2 = a2 + a8
-    a8 = 0.0088
-    a5 = u[1]
-    a8 = a8 * a5
-    a2 = a2 + a8
-    a10 = a10 * a3
-    a10 = a10 * a11
-    a10 = a10 * a6
-    a2 = a2 + a10
+    a2 = m_rate[1]
+    a3 = -0.0088
+    a4 = u_law[1]
+    a3 = a3 * a4
+    a2 = a2 + a3
+    a3 = 0.0088
+    a4 = u[1]
+    a3 = a3 * a4
+    a2 = a2 + a3
     a1 = a1 * a2
     a0 = a0 + a1
     m_next[1] = a0
@@ -705,28 +677,28 @@ def _kernel_mom_next(theta, dtheta, m, u, dt):
 
 
 def _kernel_mom_init(theta, dtheta):
-    """Momentum observer state at the first sample: the generalized momentum J theta'; 11 operations."""
+    """Momentum observer state at the first sample: the generalized momentum J theta'; 12 operations."""
     m0 = [0.0] * 2
-    a0 = dtheta[0]
-    a1 = 0.17929666666666666
-    a2 = 0.0810084
-    a3 = theta[1]
-    a3 = _cos(a3)
+    a0 = 0.14748053333333333
+    a1 = dtheta[0]
+    a0 = a0 * a1
+    a2 = 0.03181613333333334
+    a3 = dtheta[1]
+    a3 = a1 + a3
     a2 = a2 * a3
-    a1 = a1 + a2
-    a1 = a0 * a1
-    a2 = dtheta[1]
-    a4 = 0.03181613333333334
-    a5 = 0.0405042
-    a5 = a5 * a3
-    a5 = a4 + a5
-    a3 = a2 * a5
-    a1 = a1 + a3
-    m0[0] = a1
-    a4 = a4 * a2
-    a0 = a0 * a5
-    a4 = a4 + a0
-    m0[1] = a4
+    a0 = a0 + a2
+    a4 = 0.0405042
+    a1 = a4 * a1
+    a5 = theta[1]
+    a5 = _cos(a5)
+    a1 = a1 * a5
+    a0 = a0 + a1
+    a4 = a4 * a3
+    a4 = a4 * a5
+    a0 = a0 + a4
+    m0[0] = a0
+    a2 = a2 + a1
+    m0[1] = a2
     return m0
 
 
@@ -868,11 +840,11 @@ def dobc_step(state, inp, dt):
         return EDT, None, None
     if not _finite(*x, z):
         return ENONFINITE, None, None
-    (u,) = (_kernel_dobc(*x, z),)
-    if not _finite(u):
+    law, a, ldl = _kernel_dobc(*x, z)
+    if not _finite(law):
         return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    (nxt,) = (_kernel_observer(x[0], x[1], z, u, (dt,)),)
+    u, hit = _clip(law, U_MAX)
+    (nxt,) = (_kernel_observer(z, a, ldl, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
     state.z = nxt
@@ -914,11 +886,11 @@ def mom_step(state, inp, dt):
         return EDT, None, None
     if not _finite(*x, m):
         return ENONFINITE, None, None
-    u, _ = _kernel_mom(*x, m)
-    if not _finite(u):
+    law, _, rate = _kernel_mom(*x, m)
+    if not _finite(law):
         return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    (nxt,) = (_kernel_mom_next(x[0], x[1], m, u, (dt,)),)
+    u, hit = _clip(law, U_MAX)
+    (nxt,) = (_kernel_mom_next(m, rate, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
     state.m = list(nxt)
@@ -931,7 +903,7 @@ def mom_estimate(state, inp):
     x, m = _input(inp), _state(state, "m")
     if not _finite(*x, m):
         return ENONFINITE, None
-    _, dhat = _kernel_mom(*x, m)
+    _, dhat, _ = _kernel_mom(*x, m)
     if not _finite(dhat):
         return ENONFINITE, None
     return OK, np.array(dhat)

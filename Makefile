@@ -3,18 +3,30 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
+# The exact versions derive is tested with (pyproject.toml states ranges): every install here uses them.
+CONSTRAINTS := constraints.txt
+# Wheels tests/test_wheel.py installs offline beside the wheel: an older numpy 2.x than the
+# constraints' and the newest sympy published (scripts/wheelhouse.sh, from the package registry).
+WHEELHOUSE := build/wheelhouse
+WHEELHOUSE_STAMP := $(WHEELHOUSE)/.stamp
 
-.PHONY: generate test fuzz bench corpus venv clean system-deps embedded
+.PHONY: generate test fuzz bench corpus venv wheelhouse clean system-deps embedded
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e '.[test]'
 	touch $(STAMP)
 
-generate: $(STAMP)
+wheelhouse: $(WHEELHOUSE_STAMP)
+
+$(WHEELHOUSE_STAMP): scripts/wheelhouse.sh $(CONSTRAINTS) $(STAMP)
+	bash scripts/wheelhouse.sh $(PY) $(WHEELHOUSE)
+	touch $(WHEELHOUSE_STAMP)
+
+generate: $(STAMP) $(WHEELHOUSE_STAMP)
 	$(PY) -m derive generate --out generated
 	$(PY) -m derive simulate --out generated/glasgow_2link/sim --json generated/glasgow_2link/sim/metrics.json
 	$(PY) -m derive simulate --controllers npid,dobc,npid_unprotected --voltage-limits 2,3 --duration 15 \
@@ -32,8 +44,10 @@ embedded: $(STAMP) system-deps
 # Both cores of the CI machine (pytest-xdist); a module's tests stay on one worker so its
 # module-scoped fixtures (a generated and compiled arm) are built once.
 TEST_WORKERS ?= 2
-test: $(STAMP) system-deps
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+# DERIVE_REQUIRE_PINNED: the constraints' versions are installed, so a test that compares bytes
+# made under them (tests/test_generated.py) fails instead of skipping when they are not.
+test: $(STAMP) $(WHEELHOUSE_STAMP) system-deps
+	DERIVE_REQUIRE_PINNED=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 # The property tests (hypothesis) with FUZZ_FACTOR times the examples of `make test` and
 # a new random seed each run (printed; `make fuzz SEED=n` repeats a run). `make test`
@@ -43,11 +57,11 @@ ifndef SEED
 SEED := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
 endif
 FUZZ_TESTS ?= tests/test_spec_properties.py tests/test_hardening.py
-fuzz: $(STAMP) system-deps
+fuzz: $(STAMP) $(WHEELHOUSE_STAMP) system-deps
 	@echo "make fuzz: hypothesis seed $(SEED) (repeat with: make fuzz SEED=$(SEED))"
-	DERIVE_HYPOTHESIS_PROFILE=fuzz DERIVE_FUZZ_FACTOR=$(FUZZ_FACTOR) \
+	DERIVE_REQUIRE_PINNED=1 DERIVE_HYPOTHESIS_PROFILE=fuzz DERIVE_FUZZ_FACTOR=$(FUZZ_FACTOR) \
 	    $(PY) -m pytest -q -p no:cacheprovider --hypothesis-seed=$(SEED) $(FUZZ_TESTS)
-	$(PY) -m pytest -q -p no:cacheprovider -m slow
+	DERIVE_REQUIRE_PINNED=1 $(PY) -m pytest -q -p no:cacheprovider -m slow
 
 bench: $(STAMP)
 	$(PY) -m benchmarks

@@ -10,6 +10,20 @@ from derive.model.spec import packaged_arms
 from tests import hypothesis_profiles  # noqa: F401 - loads the ci or fuzz profile before any test module
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _simulate_cache_in_a_temporary_folder(tmp_path_factory):
+    """derive simulate's cache (derive.sim.cache) in a folder of this session, never the user's:
+    the commands the tests run, in process or as subprocesses, inherit the variable."""
+    import os
+
+    from derive.sim.cache import ENV
+
+    old = os.environ.get(ENV)
+    os.environ[ENV] = str(tmp_path_factory.mktemp("derive-cache"))
+    yield
+    os.environ.pop(ENV) if old is None else os.environ.__setitem__(ENV, old)
+
+
 @functools.lru_cache(maxsize=None)
 def derivation(name: str | None = None) -> derive.Derivation:
     """Derivation of a packaged arm (cached: derivations are pure)."""

@@ -17,7 +17,7 @@ from derive.model.simspec import default_settings
 
 DATA = Path(__file__).resolve().parent / "data" / "urdf"
 
-# arm -> (observer gain w of every joint [1/s], sample time [s], RK4 steps per sample): the DOBC and
+# arm -> (observer gain w of every joint [N m s/rad], sample time [s], RK4 steps per sample): the DOBC and
 # NPID sample-time limits (derive check) are then 5.3 ms (UR5), 1.23 ms (Panda), 2.15 ms (Kinova,
 # w = 0.05: its light wrist), 2.79 ms (double pendulum, w = 0.5); the Kinova's wrist with the
 # default smooth Coulomb friction decays at 11,400 1/s, beyond RK4 at h = 0.5 ms (h lambda = 5.7 >
@@ -42,11 +42,14 @@ def arm_copy(folder: Path, name: str, simulation: dict | None = None, friction: 
     <dynamics friction> [N m or N] in the copy (its damping kept); ``extra``: text appended to the arm file."""
     w, dt, substeps = SETTINGS[name]
     text = (DATA / f"{name}.toml").read_text()
-    text = re.sub(r"^w = \[[^\]]*\]", lambda m: "w = [" + ", ".join([repr(w)] * (m.group(0).count(",") + 1)) + "]",
-                  text, flags=re.M)
+    # the starter file's own W (a full matrix, derive init) and its [simulation] give way to the
+    # test's diagonal w and settings above; its speed box too, so the limits are those stated above
+    n = text.count("\n[[motor]]")
+    text = re.sub(r"^w = \[(?:[^\[\]]|\[[^\]]*\])*\]", "w = [" + ", ".join([repr(w)] * n) + "]", text, flags=re.M)
+    text = re.sub(r"^max_joint_speed = .*\n", "", text, flags=re.M)
+    text = re.sub(r"^\[simulation\]\n(?:(?!\[).*\n?)*", "", text, flags=re.M)
     table = {"sample_time": dt, "substeps": substeps, **(simulation or {})}
     if friction is None and "coulomb_friction" not in table:
-        n = text.count("\n[[motor]]")
         table["coulomb_friction"] = list(default_settings(n).coulomb_friction)
     text += "\n[simulation]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in table.items()) + extra
     urdf = (DATA / f"{name}.urdf").read_text()

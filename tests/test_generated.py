@@ -14,10 +14,12 @@ import pytest
 from derive import jsonio
 import derive
 from derive.codegen import files as codegen, render
-from derive.codegen.files import generate_files
+from derive.codegen.files import PINNED, generate_files
 from derive.codegen.emit import write_tree
 from derive.errors import EmitError
 from derive.model.spec import resolve_arm_path
+
+from .pins import differing, require_pinned
 
 ROOT = Path(__file__).resolve().parent.parent
 FIX = "make generate   (or: .venv/bin/derive generate --out generated)"
@@ -33,6 +35,10 @@ def _tree(folder: Path) -> dict[str, bytes]:
 
 
 def test_generated_folder_is_up_to_date(tmp_path):
+    """The committed generated/ is what `derive generate` writes now, byte for byte: under the
+    versions of constraints.txt of the packages its bytes depend on (derive.codegen.files.PINNED,
+    recorded in MANIFEST.json); skipped, naming the versions that differ, under others."""
+    require_pinned(PINNED, "generated/")
     subprocess.run([sys.executable, "-m", "derive", "generate", "--out", str(tmp_path)], check=True,
                    capture_output=True, cwd=ROOT)
     fresh = _tree(tmp_path / "glasgow_2link")
@@ -234,3 +240,25 @@ def test_generate_shows_its_stages_on_a_terminal_and_nothing_when_redirected(tmp
         # tqdm's own pace, so only the total is certain to show
         assert f"/{2 + len(GENERATE_STAGES)} " in text if shown else "%|" not in text
         assert "derive: wrote" in text
+
+
+def test_byte_comparison_runs_under_the_constraints_and_is_skipped_naming_the_versions_otherwise(monkeypatch):
+    """Issue 23: the versions compared are constraints.txt's; a difference is named (package,
+    installed and pinned version) and skips the comparison, or fails it under DERIVE_REQUIRE_PINNED."""
+    from importlib import metadata
+
+    import _pytest.outcomes
+
+    from . import pins
+
+    pinned = pins.constraints()
+    assert all(pinned.get(name) for name in PINNED), pinned   # every version the bytes depend on is pinned
+    real = metadata.version
+    monkeypatch.setattr(pins.metadata, "version", lambda name: "2.0.2" if name == "numpy" else real(name))
+    assert differing(PINNED) == [f"numpy 2.0.2 installed, {pinned['numpy']} in constraints.txt"]
+    monkeypatch.delenv("DERIVE_REQUIRE_PINNED", raising=False)
+    with pytest.raises(_pytest.outcomes.Skipped, match=r"numpy 2\.0\.2 installed"):
+        require_pinned(PINNED, "generated/")
+    monkeypatch.setenv("DERIVE_REQUIRE_PINNED", "1")
+    with pytest.raises(_pytest.outcomes.Failed, match=r"numpy 2\.0\.2 installed"):
+        require_pinned(PINNED, "generated/")

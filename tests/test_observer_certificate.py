@@ -378,3 +378,20 @@ def test_fourth_derivative_bounds_hold_at_random_angles(paper):
         fourth = np.abs((model.d3J(q + step) - model.d3J(q - step)) / (2 * h)).max(axis=0)
         assert np.all(fourth <= model.fourth[k] * (1 + 1e-6) + 1e-9)
         assert np.max(fourth / np.maximum(model.fourth[k], 1e-300)) > 0.5   # and not wildly loose
+
+
+# -- issue 23: the adversarial search against a proved box --------------------------------------------------
+def test_adversarial_search_finds_no_violation_inside_the_proved_box_of_planar_3link_and_one_above_its_supremum():
+    """Eq. 40's obligation (the appendix's V decays): at the largest box the certificate proves for
+    planar_3link's W, L-BFGS-B from the worst of 10,000 random states finds N positive definite; at
+    1.05 times the numeric supremum it finds a state where N is not (the search can fail)."""
+    from derive.control.adversary import search
+
+    d = derive.derive(derive.load_arm("planar_3link"))
+    r = cert.report(d)
+    assert r.speed_decision.verdict is cert.Verdict.PROVED
+    model = cert.inertia_model(d)
+    inside = search(model, r.W, [r.speed * s for s in r.shape])
+    assert inside.low > 0 and inside.low <= inside.sampled
+    above = search(model, r.W, [1.05 * r.speed_sup * s for s in r.shape])
+    assert above.low < 0

@@ -21,6 +21,7 @@ published as an sdist only, among them), then ``derive --version`` and ``derive 
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -80,9 +81,13 @@ def test_the_wheel_holds_every_file_derive_reads_at_run_time(wheel):
     assert not missing, missing
 
 
-def _dependencies_only(tmp: Path) -> Path:
+WHEELHOUSE = Path(os.environ.get("DERIVE_WHEELHOUSE", ROOT / "build" / "wheelhouse"))
+BESIDE = ("numpy", "sympy")   # installed first, from WHEELHOUSE (scripts/wheelhouse.sh)
+
+
+def _dependencies_only(tmp: Path, leave_out: tuple[str, ...] = ()) -> Path:
     """A folder of links to the current environment's installed distributions, derive's
-    own (editable) install left out."""
+    own (editable) install left out, and the top-level names starting with one of ``leave_out``."""
     folder = tmp / "deps"
     folder.mkdir()
     seen = set()
@@ -93,29 +98,68 @@ def _dependencies_only(tmp: Path) -> Path:
         seen.add(site)
         for entry in site.iterdir():
             name = entry.name.lower()
-            if name.startswith(("derive", "__editable__", "_derive")) or entry.suffix == ".pth":
+            if name.startswith(("derive", "__editable__", "_derive", *leave_out)) or entry.suffix == ".pth":
                 continue
             if not (folder / entry.name).exists():
                 (folder / entry.name).symlink_to(entry)
     return folder
 
 
-def test_the_wheel_installs_offline_and_generates_compiles_and_self_tests(wheel, tmp_path):
+def _constraint(name: str) -> str:
+    """The version constraints.txt pins ``name`` to."""
+    for line in (ROOT / "constraints.txt").read_text().splitlines():
+        if line.lower().startswith(f"{name}=="):
+            return line.split("==", 1)[1].strip()
+    raise AssertionError(f"constraints.txt pins no {name}")
+
+
+def _beside_wheels() -> dict[str, Path]:
+    """The numpy and sympy wheels of the wheelhouse ``make wheelhouse`` prepares."""
+    found = {name: sorted(WHEELHOUSE.glob(f"{name}-*.whl")) for name in BESIDE}
+    missing = [name for name, wheels in found.items() if len(wheels) != 1]
+    if missing:
+        message = (f"no single {' and '.join(missing)} wheel in {WHEELHOUSE}: run `make wheelhouse` "
+                   "(scripts/wheelhouse.sh; make test does)")
+        if os.environ.get("DERIVE_REQUIRE_PINNED"):
+            pytest.fail(message)
+        pytest.skip(message)
+    return {name: wheels[0] for name, wheels in found.items()}
+
+
+def test_the_wheel_installs_offline_beside_an_older_numpy_and_generates_compiles_and_self_tests(wheel, tmp_path):
+    """Issue 23: pyproject.toml states ranges, so installing derive keeps the numpy and sympy a user
+    has. A fresh virtual environment first gets numpy 2.0.2 (older than constraints.txt's) and the
+    newest sympy published (scripts/wheelhouse.sh), installed offline from the wheelhouse; derive's
+    other dependencies are the current environment's (linked in, numpy and sympy left out); then pip
+    installs the wheel (--no-index: a pin it cannot meet from what is there fails the install) and
+    must leave numpy and sympy as they were. There, from an empty folder, ``derive --version`` names
+    the version and ``derive generate`` writes the default arm, whose C compiles and passes its own
+    self-test (the reference values are computed in that environment, under numpy 2.0.2)."""
+    from packaging.version import Version
+
+    beside = _beside_wheels()
+    versions = {name: whl.name.split("-")[1] for name, whl in beside.items()}
+    assert Version("2") <= Version(versions["numpy"]) < Version(_constraint("numpy")), versions
+    assert Version(versions["sympy"]) >= Version(_constraint("sympy")), versions
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", "--without-pip", str(venv)])
     python = venv / "bin" / "python"
-    site = Path(_run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip())
-    (site / "dependencies.pth").write_text(str(_dependencies_only(tmp_path)) + "\n")
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "PIP_"))}
     env["PIP_NO_INDEX"] = "1"  # no network, no index: the dependencies are there already
     env["PIP_CONFIG_FILE"] = os.devnull  # nor the machine's pip configuration (find-links, constraints)
-    _run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-index", "--no-cache-dir",
-          str(wheel)], env=env)
+    pip = [sys.executable, "-m", "pip", "--python", str(python)]
+    _run([*pip, "install", "--no-index", "--no-deps", "--no-compile", "--no-cache-dir", *map(str, beside.values())],
+         env=env)
+    site = Path(_run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip())
+    (site / "dependencies.pth").write_text(str(_dependencies_only(tmp_path, (*BESIDE, "isympy"))) + "\n")
+    _run([*pip, "install", "--no-index", "--no-cache-dir", str(wheel)], env=env)
     work = tmp_path / "empty"
     work.mkdir()
     derive = venv / "bin" / "derive"
-    where = _run([str(python), "-c", "import derive; print(derive.__file__)"], cwd=work, env=env).stdout
-    assert where.startswith(str(venv)), where  # the wheel's derive, not the repository's
+    found = _run([str(python), "-c", "import derive, numpy, sympy; print(derive.__file__, numpy.__file__, "
+                  "sympy.__file__, numpy.__version__, sympy.__version__)"], cwd=work, env=env).stdout.split()
+    assert all(f.startswith(str(venv)) for f in found[:3]), found  # the wheel's derive, the venv's numpy and sympy
+    assert found[3:] == [versions["numpy"], versions["sympy"]], (found, versions)  # kept, not replaced
     version = _run([str(derive), "--version"], cwd=work, env=env).stdout
     assert version.strip() == f"derive {metadata.version('derive')}"
     _run([str(derive), "generate", "--out", "out"], cwd=work, env=env)
@@ -125,9 +169,27 @@ def test_the_wheel_installs_offline_and_generates_compiles_and_self_tests(wheel,
           ("glasgow_2link.c", "glasgow_2link_kernels.c", "glasgow_2link_selftest.c")), "-lm", "-o", str(exe)])
     out = _run([str(exe)]).stdout
     assert re.search(r"^(\d+) passed, 0 failed$", out, re.M), out
-    # the generated files are the committed ones: the wheel's templates are the repository's
-    for name in ("glasgow_2link.h", "glasgow_2link.c", "glasgow_2link_kernels.c"):
-        assert (c_dir / name).read_bytes() == (ROOT / "generated" / "glasgow_2link" / "c" / name).read_bytes(), name
+    manifest = json.loads((work / "out" / "glasgow_2link" / "MANIFEST.json").read_text())
+    assert manifest["versions"]["numpy"] == versions["numpy"], manifest["versions"]  # made under the older numpy
+
+
+def test_the_wheel_states_ranges_that_admit_other_numpy_and_sympy_releases(wheel):
+    """The wheel's Requires-Dist (what pip resolves): a range for each dependency, never a pin;
+    numpy 2.0.2 and every later 2.x, and sympy releases after constraints.txt's, admitted (no
+    upper bound; pyproject.toml names one only where a known break exists)."""
+    from packaging.requirements import Requirement
+
+    with zipfile.ZipFile(wheel) as z:
+        meta = z.read(next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))).decode()
+    reqs = [Requirement(line.split(":", 1)[1].strip()) for line in meta.splitlines()
+            if line.startswith("Requires-Dist:")]
+    runtime = {r.name.lower(): r.specifier for r in reqs if r.marker is None}
+    assert not [f"{n}{s}" for n, s in runtime.items() if any(spec.operator in ("==", "===") for spec in s)]
+    for name, later in (("numpy", ("2.0.2", "2.4.6", "2.9.0")), ("sympy", ("1.14.0", "1.15.0", "2.0.0")),
+                        ("casadi", ("3.8.2", "3.9.0")), ("jinja2", ("3.1.6", "3.2.0")),
+                        ("python-flint", ("0.9.0", "0.10.0")), ("platformdirs", ("4.14.9", "5.0.0"))):
+        assert all(runtime[name].contains(v) for v in later), (name, runtime[name])
+    assert not runtime["numpy"].contains("1.26.4"), runtime["numpy"]   # derive needs numpy 2
 
 
 def _runtime_distributions() -> list[metadata.Distribution]:

@@ -37,12 +37,18 @@ def add_arguments(parser) -> None:
                              "added to it (as [simulation] reference_start = \"measured\"): e(0) = 0, so the "
                              "initial estimate dhat(0) is 0, a smooth start")
     parser.add_argument("--force", action="store_true",
-                        help="simulate even when the sample time is above a form's limit (derive check prints it)")
+                        help="simulate even when the sample time is above a form's limit (derive check prints it) or "
+                             "the plant's RK4 step is unstable in its stiffest mode")
     parser.add_argument("--voltage-limits", "--input-limits", dest="voltage_limits", default=None,
                         metavar="U1,U2,...",
                         help="override the motors' input limits (0 = none), for saturation studies: a voltage "
                              "limit [V] of a DC motor, a torque limit [N m] in torque mode")
     add_plant_arguments(parser)
+    parser.add_argument("--no-cache", action="store_true",
+                        help="derive and compile anew and keep nothing: by default the derivation, the compiled loop "
+                             "and the figures are kept in the user's cache folder ($DERIVE_CACHE_DIR, else "
+                             "platformdirs' user_cache_dir('derive')) per arm file, the files it reads, the options "
+                             "and derive's version (derive.sim.cache)")
     parser.add_argument("--compare", action="store_true",
                         help="run the other plant too (derive's and MuJoCo's), with the same settings, and report "
                              "the difference of the trajectories (metrics comparison, plant_difference.png)")
@@ -150,7 +156,8 @@ def plant_markdown(plant: dict) -> list[str]:
               f"2.785{'' if stiff['stable'] else ': UNSTABLE, raise substeps to ' + str(stiff['substeps'])})")
     if plant["name"] == "derive":
         return [f"Plant: derive's, {plant['model']}; {h}.", ""]
-    joints = "the file's" if plant["friction"] == "file" else "derive's, no friction loss or limits"
+    joints = ("the file's (joint limits only an MJCF's: a URDF's <limit lower upper> are not applied, as derive's "
+              "plant has none)" if plant["friction"] == "file" else "derive's, no friction loss or limits")
     lines = [f"Plant: {plant['engine']} integrating `{plant['model']}` ({plant['kind'].upper()}); {h}; joint "
              f"damping, friction loss and limits: {joints}; gravity {plant['gravity']} m/s^2 in MuJoCo's world.", "",
              "| derive joint | MuJoCo joint | actuator | armature [kg m^2] | damping | friction loss |",
@@ -186,51 +193,100 @@ def described(plant, d, settings) -> dict:
 
 def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = False,
                    duration: float | None = None, observer: str = "explicit", plant: str = "derive",
-                   friction: str = "file", compare: bool = False, warn=None) -> tuple[dict[str, bytes], dict]:
+                   friction: str = "file", compare: bool = False, warn=None,
+                   cache=None) -> tuple[dict[str, bytes], dict]:
     """Run the controllers on ``plant`` (derive.sim.plants; with ``compare`` on the other plant
     too); return {file name: bytes} (PNG, metrics.md) and the metrics.
 
     A controller whose run fails keeps its samples up to the failure (plotted and
     marked), gets no metrics and a ``failed`` entry; the others are unaffected.
     ``warn(text)``, when given, receives the start's warnings before anything runs
-    (an initial estimate dhat(0) above an input limit: derive.sim.start)."""
+    (an initial estimate dhat(0) above an input limit: derive.sim.start) and, after the runs,
+    each joint that left the range its URDF or arm file states (range_warnings). ``cache``: the entry of
+    derive.sim.cache that holds the derivation, the compiled loop and the figures (None: none)."""
     from dataclasses import replace
 
-    from derive.control.pipeline import derive
     from derive.sim import plants
-    from derive.sim.plots import difference_figure, error_figure, link_figure
+    from derive.sim.cache import SimCache
 
+    cache = SimCache(None) if cache is None else cache
     settings = arm.simulation if duration is None else replace(arm.simulation, duration=duration)
     main = plants.select(arm, plant, friction)
     sources = [main, plants.select(arm, "mujoco" if plant == "derive" else "derive", friction)] if compare else [main]
-    d = derive(arm)
+    d = cached_derivation(arm, cache)
     if warn is not None and {"dobc", "npid", "npid_unprotected"} & set(names):
         from derive.sim.start import start_warnings
 
         for text in start_warnings(d, settings, observer):
             warn(text)
-    runs = _runs(d, sources, names, backend_kind, settings, observer, progress)
+    runs = _runs(d, sources, names, backend_kind, settings, observer, progress, cache)
     traces = runs[0]
+    if warn is not None:
+        for text in range_warnings(d, traces):
+            warn(text)
     unit, word = units_text(arm.input_units), input_word(arm.input_units)
     results = metrics_results(traces, settings, unit, described(main, d, settings))
-    files = {f"link{i + 1}.png": link_figure(traces, i, arm.input_units[i]) for i in range(d.n)}
-    files["tracking_error.png"] = error_figure(traces)
+    files = {f"link{i + 1}.png": cache.figure(("link", i, arm.input_units[i]), traces,
+                                              lambda i=i: _plots().link_figure(traces, i, arm.input_units[i]))
+             for i in range(d.n)}
+    files["tracking_error.png"] = cache.figure(("error",), traces, lambda: _plots().error_figure(traces))
     if compare:
         results["comparison"] = plants.compare(traces, runs[1], sources[1].describe(d, settings))
-        files["plant_difference.png"] = difference_figure(traces, runs[1], main.name, sources[1].name)
+        files["plant_difference.png"] = cache.figure(
+            ("difference", main.name, sources[1].name), [*traces, *runs[1]],
+            lambda: _plots().difference_figure(traces, runs[1], main.name, sources[1].name))
     files["metrics.md"] = metrics_markdown(arm.name, results["controllers"], backend_kind, unit, word,
                                            plant=results["plant"], comparison=results.get("comparison")).encode()
     return files, results
 
 
-def _runs(d, sources, names, backend_kind: str, settings, observer: str, progress: bool) -> list[list]:
-    """The traces of the controllers ``names`` on each plant of ``sources``."""
+def range_warnings(d, traces) -> list[str]:
+    """One sentence per controller and joint whose trajectory left the joint's stated range
+    [lower, upper] (rad or m): neither plant applies joint limits (derive's has none; MuJoCo's
+    URDF is read without them, derive.sim.mujoco.source), so such a run is not the arm's."""
+    import numpy as np
+
+    out = []
+    for trace in traces:
+        for i, joint in enumerate(d.dynamics.chain.joints):
+            lo, hi = joint.limits.lower, joint.limits.upper
+            if lo is None or hi is None or lo >= hi or not len(trace.theta):
+                continue
+            x = trace.theta[:, i]
+            k = int(np.argmax(np.maximum(float(lo) - x, x - float(hi))))
+            if x[k] < float(lo) - 1e-9 or x[k] > float(hi) + 1e-9:
+                unit = "rad" if joint.type.rotates else "m"
+                out.append(f"{trace.name}: joint {joint.name!r} leaves its range [{float(lo):g}, {float(hi):g}] "
+                           f"{unit} (reaches {x[k]:.4g} {unit} at t = {trace.t[k]:g} s); the plant applies no "
+                           "joint limits, so this run is not the arm's: lower the reference's amplitude or the "
+                           "disturbance, or start elsewhere ([simulation] initial_theta)")
+    return out
+
+
+def _plots():
+    """derive.sim.plots, imported when a figure is drawn (matplotlib takes a second to import)."""
+    from derive.sim import plots
+
+    return plots
+
+
+def cached_derivation(arm, cache):
+    """The derivation of ``arm``: the one of the cache entry ``cache`` (derive.sim.cache), else derived
+    (and kept there)."""
+    from derive.control.pipeline import derive
+
+    return cache.get("derivation", lambda: derive(arm))
+
+
+def _runs(d, sources, names, backend_kind: str, settings, observer: str, progress: bool, cache) -> list[list]:
+    """The traces of the controllers ``names`` on each plant of ``sources``; the compiled loop from
+    ``cache`` (derive.sim.cache), else built (and kept there)."""
     from derive.progress import progress as bar
     from derive.sim.plants import build
     from derive.sim.simulate import run_many
 
     if backend_kind == "compiled":
-        loop = build(d, observer, sources)
+        loop = cache.get("loop", lambda: build(d, observer, sources))
         out = []
         with bar(total=len(names) * len(sources), desc="simulating", unit="run", disable_bar=not progress) as b:
             for src in sources:
@@ -323,25 +379,43 @@ def run(args) -> int:
 
         arm = replace(arm, simulation=replace(arm.simulation, reference_start="measured"))
     from derive.sim import plants
+    from derive.sim.cache import SimCache
 
-    for plant in dict.fromkeys([args.plant, *(plants.PLANTS if args.compare else ())]):   # before the derivation
+    used = tuple(dict.fromkeys([args.plant, *(plants.PLANTS if args.compare else ())]))
+    for plant in used:   # before the derivation
         plants.select(arm, plant, args.mujoco_friction)
+    # the Python and C backends generate their controller from the derivation: only the compiled
+    # loop's runs take a cached one (its loop built from the derivation it was kept with)
+    cache = SimCache.open(arm, {"observer": args.observer, "plants": used, "friction": args.mujoco_friction},
+                          enabled=not args.no_cache and args.backend == "compiled")
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
-        from derive.control.pipeline import derive
-        from derive.control.sampling import too_slow
+        from derive.control.limit_text import too_slow
         from derive.sim.simulate import VARIANTS as forms
 
-        slow = too_slow(derive(arm), arm.simulation.sample_time, sorted({forms[c][0] for c in names}),
-                        args.observer)
+        used_forms = tuple(sorted({forms[c][0] for c in names}))
+        slow = cache.get(("too_slow", used_forms), lambda: too_slow(cached_derivation(arm, cache),
+                                                                     arm.simulation.sample_time, list(used_forms),
+                                                                     args.observer))
         if slow:
             raise DeriveError(f"simulation.sample_time of {arm.name}: " + "; ".join(slow)
                               + ": the controller would diverge; lower sample_time below the limits named, use "
                               "--observer implicit where it allows the sample time, or pass --force")
+        from derive.sim.plant import stiffest_mode
+
+        for name in used:   # RK4 unstable in the plant's stiffest mode: trajectories known to be wrong
+            source = plants.select(arm, name, args.mujoco_friction)
+            d = cached_derivation(arm, cache)
+            stiff = stiffest_mode(d, arm.simulation, source.coulomb(d, arm.simulation))
+            if not stiff["stable"]:
+                raise DeriveError(f"simulation.substeps of {arm.name} = {arm.simulation.substeps}, {name}'s plant: "
+                                  f"{stiffness_words(stiff, arm.simulation)}, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration,
                                     observer=args.observer, plant=args.plant, friction=args.mujoco_friction,
                                     compare=args.compare,
-                                    warn=lambda text: print(f"derive: warning: {text}", file=sys.stderr))
+                                    warn=lambda text: print(f"derive: warning: {text}", file=sys.stderr),
+                                    cache=cache)
+    cache.save()
     wall = time.perf_counter() - start
     write_tree(out, {"MANIFEST.json": jsonio.dumps({"_note": "generated by derive simulate; do not edit",
                                                     "files": sorted(files)}, sort_keys=False),
@@ -354,8 +428,9 @@ def run(args) -> int:
         except OSError as exc:
             raise DeriveError(f"--json {json_path}: cannot write ({exc.strerror or exc})") from None
     simulated = (args.duration or arm.simulation.duration) * len(names) * (2 if args.compare else 1)
+    kept = f"; derivation and compiled loop from the cache {cache.path}" if cache.hit else ""
     print(f"derive: simulated {simulated:g} s in {wall:.1f} s ({simulated / wall:.1f} simulated s per "
-          f"wall s); wrote {out}", file=sys.stderr)
+          f"wall s){kept}; wrote {out}", file=sys.stderr)
     stiff = results["plant"]["stiffest_mode"]
     if not stiff["stable"]:
         print(f"derive: warning: {stiffness_words(stiff, arm.simulation)}", file=sys.stderr)

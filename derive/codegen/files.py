@@ -18,7 +18,7 @@ from derive.codegen.views import ArmView, arm_view, kernel_functions, selftest_v
 from derive.identify.regressor import derive_regressor
 
 REALS = ("double", "float")
-PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # exact versions in pyproject.toml: output depends on them
+PINNED = ("sympy", "casadi", "numpy", "jinja2", "python-flint")  # output depends on their versions (constraints.txt)
 
 
 def library_files(d: Derivation, real: str, mode: ParamsMode, v: ArmView | None = None) -> dict[str, str]:
@@ -61,7 +61,7 @@ def python_files(d: Derivation, mode: ParamsMode, v: ArmView | None = None) -> d
 
 
 def observer_manifest(d: Derivation) -> dict:
-    """W [1/s] and its structure; for w = "auto" also the box, rate and certificate it was synthesised for."""
+    """W [N m s/rad] and its structure; for w = "auto" also the box, rate and certificate it was synthesised for."""
     out = {"W": [[str(x) for x in d.W.row(i)] for i in range(d.n)], "structure": d.observer.structure,
            "source": "synthesised" if d.synthesis is not None else "stated"}
     syn = d.synthesis
@@ -84,7 +84,7 @@ def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "d
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
     load_arm took of the very bytes it validated. Warnings about the
     accuracy the real type can give are appended to ``notes``. ``sample_time``: the
-    sentence of derive.control.sampling.summary, stated in the headers (derive generate passes it).
+    sentence of derive.control.limit_text.summary, stated in the headers (derive generate passes it).
     ``stage(name)``, when given, is called as each of GENERATE_STAGES begins (a progress bar).
     ``observer``: the observer step (derive.codegen.kernels.OBSERVER_STEPS); the manifest's
     options name it when it is not the default. ``regressor``: also the identification regressor

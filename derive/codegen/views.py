@@ -117,7 +117,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
              sample_time: str | None = None, observer: str = "explicit") -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
     the kernels' CasADi Functions from :func:`kernel_functions`, when at hand; ``sample_time``:
-    the sentence of derive.control.sampling.summary for the header, when the caller computed it;
+    the sentence of derive.control.limit_text.summary for the header, when the caller computed it;
     ``observer``: the observer step, derive.codegen.kernels.OBSERVER_STEPS).
 
     Raises SpecError naming the arm-file fields when a derived constant is not a normal

@@ -39,7 +39,7 @@ from derive.control.inertia import Coordinate, InertiaModel, joint_coordinates
 from derive.control.split import SplitModel, split_model
 
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Report", "Verdict", "inertia_model",
-           "joint_coordinates", "report"]
+           "joint_coordinates", "largest_proved_speed", "report"]
 
 FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding (~ n eps ||N||)
 DEFAULT_BUDGET = 20_000   # cells per decision
@@ -363,6 +363,16 @@ def _best(decide, sup: float, cap: float | None = None) -> tuple[float, Decision
     return 0.0, last
 
 
+def largest_proved_speed(cert: ObserverCertificate, W, shape, beta: float = 0.0, budget: int = DEFAULT_BUDGET,
+                         samples: int = 4096) -> tuple[float, Decision | None]:
+    """The largest box scale v (|theta'_k| <= v shape_k) that ``cert`` proves for W at rate beta, of
+    TRIES fractions of the numeric supremum of what it can prove (its sound form with a split),
+    and the decision (0 and the last decision when none proves)."""
+    W = np.asarray(W, dtype=float)
+    shape = np.asarray(shape, dtype=float)
+    return _best(lambda v: cert.decide(W, shape, v, beta, budget), cert.speed_supremum(W, shape, beta, samples))
+
+
 def report(d, W=None, budget: int = DEFAULT_BUDGET, samples: int = 4096) -> Report:
     """Certified speed box (rate 0) and rate (on the stated box) for derivation ``d``."""
     start = time.perf_counter()
@@ -385,7 +395,7 @@ def report(d, W=None, budget: int = DEFAULT_BUDGET, samples: int = 4096) -> Repo
     # the search starts from the supremum of what the certificate can prove (the split's sound
     # form), the report states N's own numeric supremum
     sup_v = cert.speed_supremum(Wn, shape, 0.0, samples, exact=True)
-    speed, sdec = _best(lambda v: cert.decide(Wn, shape, v, 0.0, budget), cert.speed_supremum(Wn, shape, 0.0, samples))
+    speed, sdec = largest_proved_speed(cert, Wn, shape, 0.0, budget, samples)
     v_rate = 1.0 if stated else 0.0
     stated_dec = cert.decide(Wn, shape, 1.0, 0.0, budget) if stated else None
     sup_b = cert.rate_supremum(Wn, shape, v_rate, samples, exact=True)

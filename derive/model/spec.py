@@ -77,7 +77,8 @@ OBSERVER_STRUCTURES = ("chen", "full")
 class Controller:
     """Settings of the predictive controller (eq. 14-19) and observer (eq. 23-25).
 
-    The observer gain W [1/s] is given one of three ways: ``w`` (n gains, W[i][j] = w_j
+    The observer gain W [N m s/rad: p = W theta' is a joint torque, eq. 22] is given one of
+    three ways: ``w`` (n gains, W[i][j] = w_j
     for j <= i, eq. 25 generalised), ``W`` (a full n x n matrix) or ``w_auto`` (chosen by
     derive.control.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
     with the structure ``observer_structure``: "chen" or "full"). ``observer_rate``
@@ -179,7 +180,7 @@ def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
 
 
 def full_w_symbols(n: int) -> tuple[sp.Symbol, ...]:
-    """Gain symbols of a full W, row-major: W1_1, W1_2, ..., Wn_n [1/s]."""
+    """Gain symbols of a full W, row-major: W1_1, W1_2, ..., Wn_n [N m s/rad]."""
     return tuple(sp.Symbol(f"W{i + 1}_{j + 1}", real=True) for i in range(n) for j in range(n))
 
 
@@ -350,7 +351,7 @@ CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected
                    "observer_rate": None, "observer_structure": None, "momentum_gain": None}
 KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
               "or urdf = \"robot.urdf\" under [arm]")
-W_EXPECTED = ("an array of n observer gains w_j > 0 [1/s] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
+W_EXPECTED = ("an array of n observer gains w_j > 0 [N m s/rad] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
               "(a full W), or 'auto' (chosen by an SDP for max_joint_speed)")
 RATE = Num("1/s", _ZERO)
 MOMENTUM = Num("1/s", _ZERO, True)   # controller.momentum_gain[i] > 0
@@ -584,7 +585,7 @@ def _observer_gain(r: Reader, d: dict, n: int | None) -> tuple[tuple | None, tup
             return None, None, False
         bad = [i for i in range(m) if rows[i][i] <= 0]
         for i in bad:
-            r.add(f"controller.w[{i + 1}][{i + 1}]", "a diagonal entry > 0 [1/s] (W + W^T must be positive "
+            r.add(f"controller.w[{i + 1}][{i + 1}]", "a diagonal entry > 0 [N m s/rad] (W + W^T must be positive "
                   "definite)", show(value[i][i]))
         if not bad and _det(rows) == 0:
             r.add("controller.w", "an invertible W (V of eq. a7 uses W^-1)", f"{inline(value)} (det W = 0)")
@@ -599,7 +600,7 @@ def _observer_gain(r: Reader, d: dict, n: int | None) -> tuple[tuple | None, tup
         return None, None, False
     bad = [i for i, x in enumerate(w) if x <= 0]
     for i in bad:
-        r.add(f"controller.w[{i + 1}]", f"w{i + 1} > 0 (observer gain [1/s]: the diagonal of W + W^T, eq. 25)",
+        r.add(f"controller.w[{i + 1}]", f"w{i + 1} > 0 (observer gain [N m s/rad]: the diagonal of W + W^T, eq. 25)",
               show(value[i]))
     return (None if bad else tuple(w)), None, False
 

@@ -168,54 +168,49 @@ def _kernel_npid(theta, dtheta, yd, dyd, ddyd, int_e, dt):
 
 
 def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
-    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27); 52 operations."""
+    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step; 63 operations."""
     a1 = dtheta[0]
     a8 = dtheta[1]
     a9 = a1 + a8
     a12 = theta[1]
     a13 = _sin(a12)
     a16 = ddyd[0]
+    a17 = ddyd[1]
     a22 = 3.0 * (dyd[0] - a1)
+    a26 = 3.0 * (dyd[1] - a8)
     a32 = 4.8 * (yd[0] - theta[0])
-    a37 = ((((a16 + ddyd[1]) + a22) + (3.0 * (dyd[1] - a8))) + a32) + (4.8 * (yd[1] - a12))
+    a36 = 4.8 * (yd[1] - a12)
+    a37 = ((((a16 + a17) + a22) + a26) + a32) + a36
     a39 = _cos(a12)
     a50 = (a16 + a22) + a32
     a54 = 0.10659 * (((0.38 * (a1 * a1)) * a13) + ((0.38 * a50) * a39))
     a60 = 0.03181613333333334 * a37
+    a81 = 0.03181613333333334 + (0.0405042 * a39)
+    a87 = (-1.0) / (0.17929666666666666 + (0.0810084 * a39))
+    a88 = a81 * a87
     u = [((-14.782608695652174) * (a1 + z[0])) + (14.782608695652174 * (((((0.38 * ((((-0.10659) * (a9 * a9)) * a13) + ((0.10659 * a37) * a39))) + (0.019617647058823528 * a1)) + a54) + (0.14748053333333333 * a50)) + a60)), ((-113.63636363636364) * ((a1 + z[1]) + (a8 + a8))) + (113.63636363636364 * (((0.0004136 * a8) + a54) + a60))]
-    return u
+    a = [a50, (a17 + a26) + a36]
+    ldl = [a88, a87, (-1.0) / (0.03181613333333334 + (a81 * a88))]
+    return u, a, ldl
 
 
-def _kernel_observer(theta, dtheta, z, u, dt):
-    """Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically; 43 operations."""
-    a0 = z[0]
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a7 = 0.17929666666666666 + (0.0810084 * a5)
-    a11 = 0.03181613333333334 + (0.0405042 * a5)
-    a13 = (0.03181613333333334 * a7) - (a11 * a11)
-    a16 = dtheta[0]
-    a24 = dtheta[1]
-    a25 = a16 + a24
-    a28 = _sin(a4)
-    a33 = (0.0405042 * (a16 * a16)) * a28
-    a34 = (((((-0.9803823529411765) * a16) - a0) + ((-0.06764705882352941) * u[0])) + (((-0.0405042) * (a25 * a25)) * a28)) + a33
-    a36 = a11 / a13
-    a39 = z[1]
-    a46 = ((((-1.9995864) * a24) - (a16 + a39)) + ((-0.0088) * u[1])) + a33
-    a49 = dt[0]
-    a50 = (((0.03181613333333334 / a13) * a34) - (a36 * a46)) * a49
-    a56 = ((a7 / a13) * a46) - (a36 * a34)
-    z_next = [a0 + a50, (a39 + a50) + ((a56 + a56) * a49)]
+def _kernel_observer(z, a, ldl, u_law, u, dt):
+    """Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J; 21 operations."""
+    a1 = dt[0]
+    a8 = ((-0.06764705882352941) * u_law[0]) + (0.06764705882352941 * u[0])
+    a13 = ldl[0]
+    a22 = (((-0.0088) * u_law[1]) + (0.0088 * u[1])) + (a13 * a8)
+    a23 = ldl[2]
+    a27 = a1 * (((a8 * ldl[1]) - a[0]) + (a13 * (a22 * a23)))
+    z_next = [z[0] + a27, (z[1] + a27) + ((a1 + a1) * ((a23 * a22) - a[1]))]
     return z_next
 
 
 def _kernel_dobc_init(theta, dtheta, yd, dyd):
-    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 12 operations."""
-    a4 = (-3.0) * (yd[0] - theta[0])
-    a5 = dyd[0]
-    a15 = dtheta[1]
-    z0 = [a4 - a5, (((((-6.0) * (yd[1] - theta[1])) - a5) + a4) + ((-2.0) * a15)) + ((-2.0) * (dyd[1] - a15))]
+    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 11 operations."""
+    a6 = ((-3.0) * (yd[0] - theta[0])) - dyd[0]
+    a14 = dtheta[1]
+    z0 = [a6, ((a6 + ((-6.0) * (yd[1] - theta[1]))) + ((-2.0) * a14)) + ((-2.0) * (dyd[1] - a14))]
     return z0
 
 
@@ -228,52 +223,47 @@ def _kernel_dhat(dtheta, z):
 
 
 def _kernel_mom(theta, dtheta, yd, dyd, ddyd, m):
-    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat; 62 operations."""
-    a1 = dtheta[0]
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a11 = dtheta[1]
-    a15 = 0.03181613333333334 + (0.0405042 * a5)
-    a17 = ((a1 * (0.17929666666666666 + (0.0810084 * a5))) - m[0]) + (a11 * a15)
-    a22 = a1 + a11
-    a25 = _sin(a4)
-    a28 = ddyd[0]
-    a34 = 3.0 * (dyd[0] - a1)
-    a44 = 4.8 * (yd[0] - theta[0])
-    a49 = ((((a28 + ddyd[1]) + a34) + (3.0 * (dyd[1] - a11))) + a44) + (4.8 * (yd[1] - a4))
-    a61 = (a28 + a34) + a44
-    a65 = 0.10659 * (((0.38 * (a1 * a1)) * a25) + ((0.38 * a61) * a5))
-    a70 = 0.03181613333333334 * a49
-    a79 = ((0.03181613333333334 * a11) - m[1]) + (a1 * a15)
-    u = [((-739.1304347826087) * a17) + (14.782608695652174 * (((((0.38 * ((((-0.10659) * (a22 * a22)) * a25) + ((0.10659 * a49) * a5))) + (0.019617647058823528 * a1)) + a65) + (0.14748053333333333 * a61)) + a70)), ((-5681.818181818182) * a79) + (113.63636363636364 * (((0.0004136 * a11) + a65) + a70))]
-    dhat = [739.1304347826087 * a17, 5681.818181818182 * a79]
-    return u, dhat
+    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, and the observer's rate m' at that u; 70 operations."""
+    a2 = dtheta[0]
+    a7 = dtheta[1]
+    a8 = a2 + a7
+    a9 = 0.03181613333333334 * a8
+    a13 = theta[1]
+    a14 = _cos(a13)
+    a15 = (0.0405042 * a2) * a14
+    a19 = ((((0.14748053333333333 * a2) - m[0]) + a9) + a15) + ((0.0405042 * a8) * a14)
+    a26 = _sin(a13)
+    a29 = ddyd[0]
+    a35 = 3.0 * (dyd[0] - a2)
+    a45 = 4.8 * (yd[0] - theta[0])
+    a50 = ((((a29 + ddyd[1]) + a35) + (3.0 * (dyd[1] - a7))) + a45) + (4.8 * (yd[1] - a13))
+    a54 = 0.38 * ((((-0.10659) * (a8 * a8)) * a26) + ((0.10659 * a50) * a14))
+    a62 = (a29 + a35) + a45
+    a66 = 0.10659 * (((0.38 * (a2 * a2)) * a26) + ((0.38 * a62) * a14))
+    a68 = 0.14748053333333333 * a62
+    a70 = 0.03181613333333334 * a50
+    a77 = (a9 - m[1]) + a15
+    u = [((-739.1304347826087) * a19) + (14.782608695652174 * ((((a54 + (0.019617647058823528 * a2)) + a66) + a68) + a70)), ((-5681.818181818182) * a77) + (113.63636363636364 * (((0.0004136 * a7) + a66) + a70))]
+    dhat = [739.1304347826087 * a19, 5681.818181818182 * a77]
+    m_rate = [((a54 + a66) + a68) + a70, (a66 + a70) + ((((-0.0405042) * a2) * a8) * a26)]
+    return u, dhat, m_rate
 
 
-def _kernel_mom_next(theta, dtheta, m, u, dt):
-    """Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 43 operations."""
-    a0 = m[0]
+def _kernel_mom_next(m, m_rate, u_law, u, dt):
+    """Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 12 operations."""
     a1 = dt[0]
-    a3 = dtheta[0]
-    a6 = theta[1]
-    a7 = _cos(a6)
-    a12 = dtheta[1]
-    a16 = 0.03181613333333334 + (0.0405042 * a7)
-    a28 = a3 + a12
-    a30 = _sin(a6)
-    a32 = 0.0405042 * a3
-    a42 = m[1]
-    m_next = [a0 + (a1 * (((((50.0 * (((a3 * (0.17929666666666666 + (0.0810084 * a7))) - a0) + (a12 * a16))) + ((-0.019617647058823528) * a3)) + (0.06764705882352941 * u[0])) + (a3 * ((((-0.0405042) * a28) * a30) + (a32 * a30)))) + ((a32 * a12) * a30))), a42 + (a1 * ((((50.0 * (((0.03181613333333334 * a12) - a42) + (a3 * a16))) + ((-0.0004136) * a12)) + (0.0088 * u[1])) + ((((-0.0405042) * a3) * a28) * a30)))]
+    m_next = [m[0] + (a1 * ((m_rate[0] + ((-0.06764705882352941) * u_law[0])) + (0.06764705882352941 * u[0]))), m[1] + (a1 * ((m_rate[1] + ((-0.0088) * u_law[1])) + (0.0088 * u[1])))]
     return m_next
 
 
 def _kernel_mom_init(theta, dtheta):
-    """Momentum observer state at the first sample: the generalized momentum J theta'; 11 operations."""
-    a0 = dtheta[0]
-    a4 = _cos(theta[1])
-    a8 = dtheta[1]
-    a12 = 0.03181613333333334 + (0.0405042 * a4)
-    m0 = [(a0 * (0.17929666666666666 + (0.0810084 * a4))) + (a8 * a12), (0.03181613333333334 * a8) + (a0 * a12)]
+    """Momentum observer state at the first sample: the generalized momentum J theta'; 12 operations."""
+    a1 = dtheta[0]
+    a5 = a1 + dtheta[1]
+    a6 = 0.03181613333333334 * a5
+    a11 = _cos(theta[1])
+    a12 = (0.0405042 * a1) * a11
+    m0 = [(((0.14748053333333333 * a1) + a6) + a12) + ((0.0405042 * a5) * a11), a6 + a12]
     return m0
 
 
@@ -441,11 +431,11 @@ def dobc_step(state, inp, dt):
     code, x, dt = _args(inp, dt, state, "z")
     if code:
         return code, None, None
-    (u,) = (_kernel_dobc(*x),)
-    if not _finite(u):
+    law, a, ldl = _kernel_dobc(*x)
+    if not _finite(law):
         return ENONFINITE, None, None
-    u, mask = _clip(u, U_MAX)
-    (nxt,) = (_kernel_observer(x[0], x[1], x[5], u, (dt,)),)
+    u, mask = _clip(law, U_MAX)
+    (nxt,) = (_kernel_observer(x[5], a, ldl, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
     state.z = nxt
@@ -485,11 +475,11 @@ def mom_step(state, inp, dt):
     code, x, dt = _args(inp, dt, state, "m")
     if code:
         return code, None, None
-    u, _ = _kernel_mom(*x)
-    if not _finite(u):
+    law, _, rate = _kernel_mom(*x)
+    if not _finite(law):
         return ENONFINITE, None, None
-    u, mask = _clip(u, U_MAX)
-    (nxt,) = (_kernel_mom_next(x[0], x[1], x[5], u, (dt,)),)
+    u, mask = _clip(law, U_MAX)
+    (nxt,) = (_kernel_mom_next(x[5], rate, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
     state.m = nxt
@@ -502,7 +492,7 @@ def mom_estimate(state, inp):
     x, m = _input(inp), _state(state, "m")
     if not _finite(*x, m):
         return ENONFINITE, None
-    _, dhat = _kernel_mom(*x, m)
+    _, dhat, _ = _kernel_mom(*x, m)
     if not _finite(dhat):
         return ENONFINITE, None
     return OK, np.array(dhat)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from derive.control.ranges import range_problem
+from derive.control.ranges import normal_range, range_problem
 from derive.errors import DerivationError
 
 # op -> (C template, Python template); {0}, {1}: operand registers, {f}: libm suffix
@@ -66,6 +66,16 @@ class Printed:
     statements: tuple[str, ...]
     operations: int
     unused_inputs: tuple[str, ...]
+
+
+def expected_literal(value: float, real: str) -> str:
+    """A self-test's expected value as c_literal writes it, except that a value below the
+    smallest normal number of ``real`` (an entry that is 0 but for the reference's last
+    digits, e.g. 1.7e-48 in a regressor column) is written 0: the self-tests compare within
+    tolerances far above it (norm-wise relative, or per entry at least the rounding of want)."""
+    if value != 0 and np.isfinite(value) and abs(value) < normal_range(real)[0]:
+        value = 0.0
+    return c_literal(value, real)
 
 
 def c_literal(value: float, real: str) -> str:

@@ -146,7 +146,7 @@ def _g(x: float) -> str:
 
 def _string(text: str) -> str:
     """``text`` as a TOML basic string: a link or file name with a quote, a backslash or a control
-    character (U+0000-U+001F, U+007F: TOML's \\uXXXX escape) stays one string."""
+    character (U+0000-U+001F, U+007F: TOML's backslash-u escape, four hex digits) stays one string."""
     def escape(c: str) -> str:
         if c in '"\\':
             return "\\" + c

@@ -33,7 +33,7 @@ from collections.abc import Sequence
 import sympy as sp
 
 from derive.dynamics.crba import Composite
-from derive.dynamics.spatial import ZERO_VEC, JointFrame, Vec, add, cross, dot, keep_sums, scale
+from derive.dynamics.spatial import ZERO_VEC, JointFrame, Vec, backward_pass, add, cross, dot, keep_sums, scale
 
 
 @keep_sums
@@ -66,15 +66,7 @@ def momentum_terms(bodies: Sequence[Composite], frames: Sequence[JointFrame],
         ang.append(add(tuple(dot(row, w) for row in c.I), cross(c.h, v)))  # type: ignore[arg-type]
     p = [sp.S.Zero] * n
     ct = [sp.S.Zero] * n
-    L: Vec = ZERO_VEC
-    A: Vec = ZERO_VEC
-    for i in reversed(range(n)):
-        if i + 1 < n:
-            f = frames[i + 1]
-            L = f.to_parent(L)
-            A = add(f.to_parent(A), cross(f.p, L))
-        L = add(lin[i], L)
-        A = add(ang[i], A)
+    for i, L, A in backward_pass(frames, lin, ang):   # the momenta of bodies i..n-1 about F_i's origin
         a = frames[i].axis
         if frames[i].rotates:
             p[i] = dot(a, A)

@@ -54,8 +54,8 @@ A loop already unstable at DT_MIN (1e-7 s) has no limit in that search: when its
 linearisation (the limit dt -> 0 of every discretisation, :func:`_continuous_rate`) is stable at
 every point, the limit is "below 1e-7 s" (extreme gains: T2 = 1e-20 puts the MPC poles at
 -1.25e20 1/s), else there is none (the linearised loop is unstable as dt -> 0: not a sampling limit).
-Jacobians are central differences of the laws evaluated in double precision (numbers to 1e-6
-relative, far below the margin).
+The Jacobians are exact (CasADi's automatic differentiation of the laws' graphs,
+derive.control.linear_loop), evaluated in double precision at every point in one call.
 """
 from __future__ import annotations
 
@@ -64,10 +64,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
-from derive.control.grid import Grid, grid, mass_function
-from derive.dynamics.sx import batched
+from derive.control.grid import Grid, grid
+from derive.control.linear_loop import SampledLoop
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
@@ -78,6 +77,7 @@ DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
 DT_START = 1e-5   # s: where the doubling starts (after the loop is checked stable at DT_MIN)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
+SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
 
 
 @dataclass(frozen=True)
@@ -96,106 +96,6 @@ class SampleLimit:
     points: int
     worst: tuple[tuple[float, ...], tuple[float, ...]] | None
     below: bool = False   # unstable at DT_MIN though the continuous loop is stable at every point: limit < DT_MIN
-
-
-def _jac(f, X: np.ndarray, h: float = 1e-6) -> np.ndarray:
-    """Central-difference Jacobians of a batched vector function f: (P, k) -> (P, m) at the P rows
-    of X (P x k): P x m x k, the step h (1 + |x_i|) per row and coordinate."""
-    cols = []
-    for i in range(X.shape[1]):
-        step = h * (1.0 + np.abs(X[:, i]))
-        E = np.zeros_like(X)
-        E[:, i] = step
-        cols.append((f(X + E) - f(X - E)) / (2 * step)[:, None])
-    return np.stack(cols, axis=-1)
-
-
-def _batched(args, exprs):
-    """A numpy function of the P x len(args) array of arguments, one row per point: P x len(exprs)
-    (CasADi, each shared subexpression computed once: derive.dynamics.sx.batched)."""
-    return batched(list(args), list(exprs))
-
-
-class SampledLoop:
-    """Numeric laws of a derivation for the linearisation (double precision, evaluated at all
-    operating points at once: every function takes and returns one row per point)."""
-
-    def __init__(self, d) -> None:
-        s = d.dynamics.sym
-        self.n = d.n
-        x = list(s.theta + s.dtheta + s.yd + s.dyd + s.ddyd)
-        th, dth = list(s.theta), list(s.dtheta)
-        mass = mass_function(d)               # P x n x n
-        self.J = lambda Q: mass(Q).reshape(Q.shape[0], -1)   # P x n*n, row-major
-        self.G = _batched(th + dth, d.measured(d.G))
-        self.B = np.array(d.B.tolist(), dtype=float)
-        self.W = np.array(d.W.tolist(), dtype=float)
-        self.C = np.array(d.C.tolist(), dtype=float)
-        mom = d.momentum
-        self.laws = {"mpc": _batched(x, d.measured(d.u_star)), "dobc": _batched(x + list(s.z), d.measured(d.u_dobc)),
-                     "npid": _batched(x + list(s.int_e), d.measured(d.u_npid)),
-                     "mom": _batched(x + list(mom.m), d.measured(d.u_mom))}
-        # the momentum observer's m' = B u + C^T theta' - g - F theta' + K (J theta' - m) (forward Euler)
-        self.mom_rate = _batched(th + dth + list(mom.m) + list(s.u), d.numeric(mom.m_rate))
-        self.K = np.array(d.numeric(mom.K).tolist(), dtype=float)
-        # u_npid = u* + B^-1 W xi (derive.control.npid): the implicit NPID replaces W by W_dt there
-        self.xi = _batched(x + list(s.int_e), d.measured(d.numeric(d.npid.xi)))
-
-    def mass(self, Q: np.ndarray) -> np.ndarray:
-        """J at the rows of Q: P x n x n."""
-        return self.J(Q).reshape(-1, self.n, self.n)
-
-    def accel(self, Q, DQ, U) -> np.ndarray:
-        """theta'' at each row: J theta'' = B u - G, solved (P x n)."""
-        rhs = U @ self.B.T - self.G(np.hstack([Q, DQ]))
-        return np.linalg.solve(self.mass(Q), rhs[..., None])[..., 0]
-
-    def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
-        """Jacobians at the operating points (rows of Q, DQ), stacked over the points: A = df/dx,
-        Bu = df/du, Ux = du/dx, Uc = du/dc (the form's state c), J, dr = d(G - W theta')/dx,
-        Xi = dxi/d(x, c) for NPID (xi of derive.control.npid, u_npid = u* + B^-1 W xi), else zeros;
-        R = dm'/d(x, m, u) for MOM (at m = J theta', where r = 0), else absent."""
-        n, P = self.n, Q.shape[0]
-        ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
-        law = self.laws[form]
-
-        def u_of(XC):
-            return law(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
-
-        def xi_of(XC):
-            return self.xi(np.hstack([XC[:, :2 * n], ref, XC[:, 2 * n:]]))
-
-        p0 = np.einsum("pij,pj->pi", self.mass(Q), DQ)   # m = J theta': r = 0, dhat = 0 at the point
-        XC0 = np.hstack([Q, DQ] + ([-DQ @ self.W.T] if form == "dobc" else [np.zeros((P, n))] if form == "npid"
-                                   else [p0] if form == "mom" else []))
-        Uxc = _jac(u_of, XC0)
-
-        def f(XU):
-            return np.hstack([XU[:, n:2 * n], self.accel(XU[:, :n], XU[:, n:2 * n], XU[:, 2 * n:])])
-
-        F = _jac(f, np.hstack([Q, DQ, u_of(XC0)]))
-        # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
-        # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
-        dr = _jac(self.G, np.hstack([Q, DQ])) - np.hstack([np.zeros((n, n)), self.W])
-        Xi = _jac(xi_of, XC0) if form == "npid" else np.zeros((P, n, 3 * n))
-        out = {"A": F[:, :, :2 * n], "Bu": F[:, :, 2 * n:], "Ux": Uxc[:, :, :2 * n], "Uc": Uxc[:, :, 2 * n:],
-               "J": self.mass(Q), "dr": dr, "Xi": Xi}
-        if form == "mom":
-            out["R"] = _jac(self.mom_rate, np.hstack([XC0, u_of(XC0)]))
-            # the residual's coordinates r = K (J(theta) theta' - m): P = d(J theta')/dx at the point and its
-            # rate along the nominal motion x' = (theta', theta'') (central differences)
-            X0 = np.hstack([Q, DQ])
-            momentum = self.momentum
-            out["P"] = _jac(momentum, X0)
-            f0 = f(np.hstack([X0, u_of(XC0)]))
-            h = 1e-6 / (1.0 + np.abs(f0).max(axis=1, keepdims=True))
-            out["Pdot"] = (_jac(momentum, X0 + h * f0) - _jac(momentum, X0 - h * f0)) / (2 * h[:, :, None])
-        return out
-
-    def momentum(self, X: np.ndarray) -> np.ndarray:
-        """The generalized momentum J(theta) theta' at the rows of X = (theta, theta'): P x n."""
-        n = self.n
-        return np.einsum("pij,pj->pi", self.mass(X[:, :n]), X[:, n:])
 
 
 def operating_points(d) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -232,26 +132,35 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
         return SampleLimit(form, observer, MARGIN * lo, lo, len(pts), worst)
 
-    rho = radii(DT_MIN)
-    if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
-        if _continuous_rate(loop, form, L).max() < 0.0:
-            worst = tuple(tuple(float(x) for x in v) for v in pts[int(rho.argmax())])
-            return SampleLimit(form, observer, 0.0, DT_MIN, len(pts), worst, below=True)
-        return done(0.0, int(rho.argmax()))
-    # doubling over every point from DT_START, then bisection over the points nearest to failing at the
-    # bracket's upper end, then the whole grid at the result (again if a point fails there)
-    safe, dt, hi = DT_MIN, DT_START, None
-    while hi is None and safe < DT_MAX:
-        rho = radii(dt)
-        if rho.max() >= 1.0:
-            hi = dt
-        else:
-            safe, dt = dt, min(dt * 2, DT_MAX)
-    if hi is None:
-        return SampleLimit(form, observer, math.inf, math.inf, len(pts), None)
-    lo, bad = safe, int(rho.argmax())
-    active = np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]
+    # the search runs on a subset of the points (every k-th, SUBSET of them), and the whole grid is checked
+    # at its result; points that fail there join the subset and the search starts again (it ends: the
+    # subset grows each time, up to the whole grid). Stable up to DT_MAX is checked on the whole grid.
+    P = len(pts)
+    subset = np.arange(0, P, max(1, P // SUBSET))
     while True:
+        rho = radii(DT_MIN, subset)
+        if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
+            bad = int(subset[rho.argmax()])
+            if _continuous_rate(loop, form, L).max() < 0.0:
+                worst = tuple(tuple(float(x) for x in v) for v in pts[bad])
+                return SampleLimit(form, observer, 0.0, DT_MIN, P, worst, below=True)
+            return done(0.0, bad)
+        # doubling from DT_START, then bisection over the points nearest to failing at the bracket's upper end
+        safe, dt, hi = DT_MIN, DT_START, None
+        while hi is None and safe < DT_MAX:
+            rho = radii(dt, subset)
+            if rho.max() >= 1.0:
+                hi = dt
+            else:
+                safe, dt = dt, min(dt * 2, DT_MAX)
+        if hi is None:
+            failed = _first_failure(radii, P, DT_START, DT_MAX)
+            if failed is None:
+                return SampleLimit(form, observer, math.inf, math.inf, P, None)
+            subset = np.union1d(subset, failed)
+            continue
+        lo, bad = safe, int(subset[rho.argmax()])
+        active = subset[np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]]
         while hi / lo > 1.01:
             mid = math.sqrt(lo * hi)
             r = radii(mid, active)
@@ -262,8 +171,20 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         rho = radii(lo)
         if rho.max() < 1.0:
             return done(lo, bad)
-        hi, bad, lo = lo, int(rho.argmax()), safe
-        active = np.union1d(active, np.flatnonzero(rho >= 1.0))
+        subset = np.union1d(subset, np.flatnonzero(rho >= 1.0))
+
+
+def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | None:
+    """The points unstable at the first dt of the doubling from ``start`` to ``stop`` where any point
+    of the whole grid is (None: stable at every one)."""
+    dt = start
+    while True:
+        rho = radii(dt)
+        if rho.max() >= 1.0:
+            return np.flatnonzero(rho >= 1.0)
+        if dt >= stop:
+            return None
+        dt = min(dt * 2, stop)
 
 
 def _expm(M: np.ndarray) -> np.ndarray:

@@ -58,6 +58,7 @@ class ArmResult:
     expect: str
     pinocchio_load_s: float | None
     commands: list[Step] = field(default_factory=list)
+    tracking: dict | None = None   # the starter file's simulate run: _tracking
 
 
 Run = tuple[int | None, float, float | None, str, float | None]
@@ -204,9 +205,33 @@ def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
         code, wall, peak, text, cpu = _python_selfcheck(folder, arm.name, arm_file, timeout)
         result.commands.append(Step("selftest-python", code == 0, wall, peak,
                                     "" if code == 0 else f"exit {code}: {text[-600:]}", cpu))
-    step("simulate", _derive("simulate", arm_file.name, "--out", "sim", "--json", "metrics.json"))
+    if step("simulate", _derive("simulate", arm_file.name, "--out", "sim", "--json", "metrics.json")):
+        result.tracking = _tracking(folder / "metrics.json")
     step("fmu --plant", _derive("fmu", arm_file.name, "--plant", "--out", "fmu"))
     return result
+
+
+def _tracking(path: Path) -> dict:
+    """Per form, the worst joint's RMS and max tracking error [rad or m] of a simulate run's metrics
+    (issue 20: the starter file tracks; the figure stated per arm)."""
+    import json
+
+    forms = json.loads(path.read_text(encoding="utf-8"))["controllers"]
+    out = {}
+    for form, c in forms.items():
+        links = c["links"]
+        worst = max(range(len(links)), key=lambda i: links[i]["rms_error"])
+        out[form] = {"joint": worst + 1, "rms": links[worst]["rms_error"],
+                     "max": max(x["max_error"] for x in links)}
+    return out
+
+
+def _tracking_cell(result: ArmResult) -> str:
+    t = result.tracking
+    if not t:
+        return "-"
+    return "; ".join(f"{f.upper()} {t[f]['rms']:.2g} / {t[f]['max']:.2g} (j{t[f]['joint']})"
+                     for f in ("dobc", "npid", "mom", "mpc") if f in t)
 
 
 def run_corpus(names: tuple[str, ...] = (), timeout: float = TIMEOUT) -> list[ArmResult]:
@@ -243,12 +268,13 @@ def _cell(result: ArmResult, command: str) -> str:
 def markdown(results: list[ArmResult], timeout: float) -> str:
     rows = [[r.name, r.joints if r.joints is not None else "-",
              "-" if r.pinocchio_load_s is None else f"{r.pinocchio_load_s * 1e3:.1f} ms"]
-            + [_cell(r, c) for c in COLUMNS] for r in results]
+            + [_cell(r, c) for c in COLUMNS] + [_tracking_cell(r)] for r in results]
     failures = [f"- {r.name} `{c.command}`: {c.detail}" for r in results for c in r.commands if not c.ok]
     return "\n\n".join([
-        table(("arm", "joints", "Pinocchio load") + COLUMNS, rows),
+        table(("arm", "joints", "Pinocchio load") + COLUMNS + ("tracking",), rows),
         f"CPU time (user + system), wall time and peak memory per command (timeout {timeout:.0f} s of wall time "
-        "per command); the goals read the CPU time.",
+        "per command); the goals read the CPU time. Tracking: the starter file's own simulate run, per form the "
+        "worst joint's RMS / max tracking error [rad] over the run (and which joint); MPC alone has no observer.",
         "Failures:\n\n" + "\n".join(failures) if failures else "No failures."])
 
 

@@ -225,3 +225,29 @@ def test_init_writes_the_rk4_substeps_a_light_joints_urdf_friction_needs(tmp_pat
     path.write_text(text.replace(f"substeps = {substeps}", "substeps = 4"))
     assert main([*argv[:-1], str(tmp_path / "sim2")]) == 2
     assert "derive: error: simulation.substeps of" in capsys.readouterr().err and not (tmp_path / "sim2").exists()
+
+
+def test_init_sample_time_fits_the_sampled_loop_when_a_joints_viscous_damping_binds(tmp_path, capsys):
+    """Issue 20 (the xArm6 kind: <dynamics damping="1"> on a 1e-4 kg m^2 wrist): a URDF's viscous damping b is
+    in G, a mode of rate b / J that the sampled laws (eq. 15, 27, 34 and MOM) compensate, so the sampled loop's
+    limits fall far below the estimates from W and K alone (double pendulum with b = 2 N m s/rad: MOM 1.74 ms,
+    DOBC 1.91 ms, where those estimates allow 2 ms). derive init writes at most half of every limit derive show
+    states for the file, both observer steps, lists them, and simulate runs the file as written."""
+    from derive.control.sampling import OBSERVERS, limits
+    from derive.control.starter import round_sample_time
+
+    urdf = _copy(tmp_path, "double_pendulum")
+    urdf.write_text(urdf.read_text().replace('<dynamics damping="0.05" />', '<dynamics damping="2" />'))
+    assert main(["init", str(urdf)]) == 0
+    path = urdf.with_suffix(".toml")
+    arm = derive.load_arm(path)
+    d = derive.derive(arm)
+    stated = [lim.limit for observer in OBSERVERS for lim in limits(d, observer).values()]
+    dt = arm.simulation.sample_time
+    assert dt == round_sample_time(0.5 * min(stated)) and dt < 1e-3      # the sampled loop set it
+    text = path.read_text()
+    for observer, forms in (("forward-Euler", limits(d, "explicit")), ("--observer implicit", limits(d, "implicit"))):
+        line = next(x for x in text.splitlines() if x.startswith(f"#   {observer}"))
+        assert all(f"{form.upper()} {lim.limit * 1e3:.3g} ms" in line for form, lim in forms.items()), line
+    capsys.readouterr()
+    assert main(["simulate", str(path), "--duration", "1", "--out", str(tmp_path / "sim")]) == 0

@@ -19,7 +19,9 @@ assumption with a comment, the joint limits as comments, the chain's notes
 * ``w``: W = omega Jbar for this arm (derive.control.starter), certified on the
   box by the same decision ``derive check`` makes;
 * ``[simulation] sample_time``: a round value at most 0.45 of the limits
-  estimated from W's largest observer rate and the momentum observer's gain.
+  estimated from W's largest observer rate and the momentum observer's gain, and
+  at most half of every limit ``derive show`` states for the file (the sampled
+  loop of every form and observer step over the speed box).
 
 It never overwrites a file (checked before the derivation); the URDF path in
 it is relative to the arm file.
@@ -246,12 +248,12 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "[simulation]",
         f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
         + "# s: a round value at most 0.45 of each limit estimated from W and the momentum observer's",
-        f"# gain: the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s (0.9 x: "
-        f"{gain.observer_limit * 1e3:.3g} ms),",
-        f"# the momentum observer's below 2 / K ({gain.momentum_limit * 1e3:.3g} ms); derive check and derive show "
-        "print each",
-        "# form's limit over the speed box (with --observer implicit the DOBC and NPID limits are far larger).",
-    ]
+        f"# gain (the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s, 0.9 x: "
+        f"{gain.observer_limit * 1e3:.3g} ms;",
+        f"# the momentum observer's below 2 / K, {gain.momentum_limit * 1e3:.3g} ms), and at most half of each "
+        "limit derive show",
+        "# and derive check state for this file (the sampled loop over the speed box, 0.9 of the largest stable):",
+    ] + _stated_lines(gain.stated)
     if substeps is not None:
         lines += [
             f"substeps = {substeps}" + " " * max(1, 20 - len(str(substeps)))
@@ -259,6 +261,33 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
             "# as a smooth Coulomb law, its slope over the joint inertia) needs h lambda <= 2.785",
         ]
     return "\n".join(lines + [""])
+
+
+def _stated_lines(stated) -> list[str]:
+    """Comment lines of the sampled loop's limits (StarterGain.stated), per observer step."""
+    def ms(x: float) -> str:
+        return "none" if x == 0 else "any" if x == float("inf") else f"{x * 1e3:.3g} ms"
+
+    out = []
+    for observer, label in (("explicit", "forward-Euler observer step (derive generate's default)"),
+                            ("implicit", "--observer implicit")):
+        forms = [(f, x) for o, f, x in stated if o == observer]
+        if forms:
+            out.append(f"#   {label}: " + ", ".join(f"{f.upper()} {ms(x)}" for f, x in forms))
+    return out
+
+
+def stated_limits(text: str, out: Path):
+    """The sampled loop's limits of every form and observer step (derive.control.sampling) for the arm
+    file ``text`` read as it will be written at ``out``, and its derivation."""
+    import tomllib
+
+    from derive.control.pipeline import derive
+    from derive.control.sampling import OBSERVERS, limits
+    from derive.model.spec import arm_from_dict
+
+    d = derive(arm_from_dict(tomllib.loads(text), str(out), base_dir=out.resolve().parent))
+    return {observer: limits(d, observer) for observer in OBSERVERS}, d
 
 
 def choose_gain(draft: str, out: Path, chain):
@@ -285,20 +314,21 @@ def choose_gain(draft: str, out: Path, chain):
     return starter_gain(model, box), dyn
 
 
-def rk4_substeps(text: str, out: Path, dyn) -> int:
-    """The RK4 steps per sample the simulation of the arm file ``text`` needs at its nominal
-    parameters (derive.sim.plant.decay_mode: the stiffest mode at the initial pose, a light
-    joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
-    import tomllib
+def rk4_substeps(d, sample_time: float) -> int:
+    """The RK4 steps per sample the simulation of derivation ``d``'s arm file needs at its nominal
+    parameters and ``sample_time`` [s] (derive.sim.plant.decay_mode: the stiffest mode at the initial
+    pose, a light joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
+    from dataclasses import replace
 
-    import sympy as sp
+    import numpy as np
 
-    from derive.model.spec import arm_from_dict
+    from derive.control.grid import mass_function
     from derive.sim.plant import decay_mode
 
-    s = arm_from_dict(tomllib.loads(text), str(out), base_dir=out.resolve().parent).simulation
-    values = {sym: sp.Float(v, 17) for sym, v in dyn.values}
-    return decay_mode(dyn, values, s, s.viscous_friction, s.coulomb_friction)["substeps"]
+    s = replace(d.arm.simulation, sample_time=sample_time)
+    J = mass_function(d)(np.array([s.initial_theta], dtype=float))[0]
+    return decay_mode(d.dynamics, dict(d.dynamics.values), s, s.viscous_friction, s.coulomb_friction,
+                      J=J)["substeps"]
 
 
 def _write_new(path: Path, text: str) -> None:
@@ -371,7 +401,12 @@ def run(args) -> int:
     draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
     gain, dyn = choose_gain(draft, out, found.chain)
     text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
-    substeps = rk4_substeps(text, out, dyn)
+    from derive.control.starter import fit_to_limits
+
+    stated, d = stated_limits(text, out)
+    gain = fit_to_limits(gain, stated)
+    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
+    substeps = rk4_substeps(d, gain.sample_time)
     if substeps > SimSettings.substeps:   # the default the file leaves unsaid
         text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes,
                             substeps)

@@ -77,6 +77,7 @@ DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
 DT_START = 1e-5   # s: where the doubling starts (after the loop is checked stable at DT_MIN)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
+GROWTH = 4.0      # the bracket's growth per step from DT_START
 SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
 
 
@@ -136,7 +137,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     # at its result; points that fail there join the subset and the search starts again (it ends: the
     # subset grows each time, up to the whole grid). Stable up to DT_MAX is checked on the whole grid.
     P = len(pts)
-    subset = np.arange(0, P, max(1, P // SUBSET))
+    subset, hi = np.arange(0, P, max(1, P // SUBSET)), None
     while True:
         rho = radii(DT_MIN, subset)
         if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
@@ -145,20 +146,27 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
                 worst = tuple(tuple(float(x) for x in v) for v in pts[bad])
                 return SampleLimit(form, observer, 0.0, DT_MIN, P, worst, below=True)
             return done(0.0, bad)
-        # doubling from DT_START, then bisection over the points nearest to failing at the bracket's upper end
-        safe, dt, hi = DT_MIN, DT_START, None
-        while hi is None and safe < DT_MAX:
-            rho = radii(dt, subset)
-            if rho.max() >= 1.0:
-                hi = dt
-            else:
-                safe, dt = dt, min(dt * 2, DT_MAX)
+        # a bracket: growing by GROWTH from DT_START (or, after a restart, halving from the dt the whole
+        # grid failed at), then bisection over the points nearest to failing at its upper end
         if hi is None:
-            failed = _first_failure(radii, P, DT_START, DT_MAX)
-            if failed is None:
-                return SampleLimit(form, observer, math.inf, math.inf, P, None)
-            subset = np.union1d(subset, failed)
-            continue
+            safe, dt = DT_MIN, DT_START
+            while hi is None and safe < DT_MAX:
+                rho = radii(dt, subset)
+                if rho.max() >= 1.0:
+                    hi = dt
+                else:
+                    safe, dt = dt, min(dt * GROWTH, DT_MAX)
+            if hi is None:
+                failed = _first_failure(radii, P, DT_START, DT_MAX)
+                if failed is None:
+                    return SampleLimit(form, observer, math.inf, math.inf, P, None)
+                subset = np.union1d(subset, failed)
+                continue
+        else:
+            safe = hi / 2
+            while (rho := radii(safe, subset)).max() >= 1.0 and safe > DT_MIN:
+                hi, safe = safe, max(safe / 2, DT_MIN)
+            rho = radii(hi, subset)
         lo, bad = safe, int(subset[rho.argmax()])
         active = subset[np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]]
         while hi / lo > 1.01:
@@ -171,6 +179,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         rho = radii(lo)
         if rho.max() < 1.0:
             return done(lo, bad)
+        hi = lo
         subset = np.union1d(subset, np.flatnonzero(rho >= 1.0))
 
 

@@ -27,15 +27,19 @@ The sample time: with the forward-Euler observer step the fast mode steps by I -
 for dt < 2 / rate_max (derive.control.sampling: the DOBC and NPID limit), and the momentum
 observer's by 1 - dt K (dt < 2 / K); the value written is a round number (1, 2, 2.5, 4 or 5 x 10^k s)
 at most HEADROOM of the smaller of 0.9 x those bounds, and at most 2 ms. These are the limits at
-rest; at speed the sampled loop's limits are lower (the iiwa at its 10 rad/s box: DOBC 0.995 ms
-against 1.0 ms estimated, MOM 1.27 ms against 36 ms), which HEADROOM leaves room for. ``derive check`` and
-``derive show`` print the limits themselves, over the speed box.
+rest and without the arm's own fast modes; at speed, and with a light joint's viscous damping b (the
+URDF's <dynamics damping>, in G: a mode of rate b / J that the sampled law compensates) the sampled
+loop's limits can be far lower (the xArm6, b = 1 N m s/rad on a 1e-4 kg m^2 wrist: DOBC 0.464 ms
+against 2.73 ms estimated, MOM 0.743 ms against 36 ms). So :func:`fit_to_limits` then takes the limits
+``derive show`` and ``derive check`` state (derive.control.sampling: the sampled loop of every form, both
+observer steps, over the speed box) for the W written, and the sample time is at most STATED_HEADROOM of
+the smallest.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -48,6 +52,7 @@ FIRST_BUDGET = 20_000   # cells of the first try (derive check's budget: what pr
 BUDGET = 5000        # cells of each later try (omega raised: fewer cells needed)
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
 HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
+STATED_HEADROOM = 0.5   # ... and at most this fraction of the smallest limit derive show states (fit_to_limits)
 MAX_SAMPLE_TIME = 2e-3
 SAMPLES = 1024
 DIGITS = 4           # significant digits of W's entries as written
@@ -71,6 +76,7 @@ class StarterGain:
     momentum_limit: float
     seconds: float
     floor: bool = False   # omega is FLOOR's (the rates' geometric mean), not the certificate's need
+    stated: tuple[tuple[str, str, float], ...] = ()   # (observer, form, limit [s]) of the sampled loop (fit_to_limits)
 
 
 def _round(x: float) -> float:
@@ -119,3 +125,14 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
     return StarterGain(W=tuple(tuple(float(x) for x in row) for row in W), omega=omega, rates=rates, decision=dec,
                        sample_time=dt, observer_limit=observer, momentum_limit=momentum,
                        seconds=time.perf_counter() - start, floor=floor and omega == max(FLOOR / middle, need))
+
+
+def fit_to_limits(gain: StarterGain, stated: dict[str, dict]) -> StarterGain:
+    """``gain`` with its sample time at most STATED_HEADROOM of the smallest positive finite limit of
+    ``stated`` ({observer: {form: derive.control.sampling.SampleLimit}}, the sampled loop of the arm file
+    as written) and no larger than before; the limits kept in ``gain.stated``. A form without a positive
+    finite limit (unstable as dt -> 0, or stable at every dt) sets none."""
+    rows = tuple((observer, form, lim.limit) for observer, forms in stated.items() for form, lim in forms.items())
+    usable = [x for _, _, x in rows if 0 < x < math.inf]
+    dt = gain.sample_time if not usable else min(gain.sample_time, round_sample_time(STATED_HEADROOM * min(usable)))
+    return replace(gain, sample_time=dt, stated=rows)

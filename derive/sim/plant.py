@@ -179,15 +179,16 @@ def stiffest_mode(d: Derivation, s: SimSettings, coulomb=None) -> dict:
     return decay_mode(d.dynamics, rep, s, plant.viscous, plant.coulomb if coulomb is None else coulomb)
 
 
-def decay_mode(dynamics, values: dict, s: SimSettings, viscous, coulomb) -> dict:
+def decay_mode(dynamics, values: dict, s: SimSettings, viscous, coulomb, J=None) -> dict:
     """stiffest_mode's figures for ``dynamics`` (derive.dynamics.equations) at parameter
     ``values`` {symbol: number}: the nominal plant when they are the arm file's (derive init
-    writes the substeps this asks for)."""
+    writes the substeps this asks for). ``J``: J at the initial pose (n x n) when the caller has it."""
     from derive.model.actuators import terms
 
     theta = list(dynamics.sym.theta)
     n = len(theta)
-    J = np.array(lambdify(theta, [x.xreplace(values) for x in dynamics.J])(*s.initial_theta), dtype=float)
+    if J is None:
+        J = np.array(lambdify(theta, [x.xreplace(values) for x in dynamics.J])(*s.initial_theta), dtype=float)
     damping = np.array([float(terms(a)[1].xreplace(values)) for a in dynamics.chain.actuators])
     damping += np.array(viscous, dtype=float) + np.array(coulomb, dtype=float) / SMOOTH
     rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(n, n), np.diag(damping))).real))

@@ -35,12 +35,11 @@ import tempfile
 from fractions import Fraction
 from pathlib import Path
 
+from derive.cli.init_numbers import DEFAULT_SPEED, DEFAULT_TRAVEL_SPEED, speed_box
 from derive.errors import DeriveError, SpecError
 from derive.model.simspec import SimSettings
 
 T2_DEFAULT = "0.2"
-DEFAULT_SPEED = 2.0          # rad/s: the speed box of a joint whose URDF gives no velocity limit (assumption)
-DEFAULT_TRAVEL_SPEED = 0.5   # m/s: the same for a prismatic joint
 DIGITS = 4                   # significant digits of W as written (derive.control.starter.DIGITS)
 
 
@@ -127,19 +126,6 @@ def _limits_comment(joint) -> str:
     if lim.effort is not None:
         parts.append(f"effort {_num(lim.effort, 'N m' if joint.type.rotates else 'N')}")
     return "; ".join(parts) if parts else "no limits in the URDF"
-
-
-def speed_box(chain) -> tuple[tuple[float, ...], tuple[bool, ...]]:
-    """The speed box a starter file states: each joint's URDF velocity limit (as written, 6
-    significant digits), else DEFAULT_SPEED (rad/s; DEFAULT_TRAVEL_SPEED m/s for a prismatic
-    joint), with whether it was assumed."""
-    values, assumed = [], []
-    for joint in chain.joints:
-        v = joint.limits.velocity
-        given = v is not None and v > 0
-        values.append(float(f"{float(v):g}") if given else (DEFAULT_SPEED if joint.type.rotates else DEFAULT_TRAVEL_SPEED))
-        assumed.append(not given)
-    return tuple(values), tuple(assumed)
 
 
 def _g(x: float) -> str:
@@ -277,60 +263,6 @@ def _stated_lines(stated) -> list[str]:
     return out
 
 
-def stated_limits(text: str, out: Path):
-    """The sampled loop's limits of every form and observer step (derive.control.sampling) for the arm
-    file ``text`` read as it will be written at ``out``, and its derivation."""
-    import tomllib
-
-    from derive.control.pipeline import derive
-    from derive.control.sampling import OBSERVERS, limits
-    from derive.model.spec import arm_from_dict
-
-    d = derive(arm_from_dict(tomllib.loads(text), str(out), base_dir=out.resolve().parent))
-    return {observer: limits(d, observer) for observer in OBSERVERS}, d
-
-
-def choose_gain(draft: str, out: Path, chain):
-    """The starter W and sample time (derive.control.starter) for the arm of the ``draft`` text,
-    read as it will be written at ``out``."""
-    import tomllib
-
-    from derive.control.inertia import joint_coordinates
-    from derive.control.starter import starter_gain
-    from derive.dynamics.equations import derive_dynamics
-    from derive.model.spec import arm_from_dict
-
-    arm = arm_from_dict(tomllib.loads(draft), str(out), base_dir=out.resolve().parent)
-    dyn = derive_dynamics(arm)
-    model_J = dyn.J.xreplace(dict(dyn.values))
-    from derive.control.inertia import InertiaModel
-
-    model = InertiaModel(model_J, joint_coordinates(arm, dyn.sym.theta))
-    if model.unbounded:
-        names = ", ".join(repr(chain.joints[c.index].name) for c in model.unbounded)
-        raise DeriveError(f"joint {names}: expected a prismatic joint with <limit lower upper> (the observer "
-                          "certificate and the sample-time analysis range over its travel), got none")
-    box, _ = speed_box(chain)
-    return starter_gain(model, box), dyn
-
-
-def rk4_substeps(d, sample_time: float) -> int:
-    """The RK4 steps per sample the simulation of derivation ``d``'s arm file needs at its nominal
-    parameters and ``sample_time`` [s] (derive.sim.plant.decay_mode: the stiffest mode at the initial
-    pose, a light joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
-    from dataclasses import replace
-
-    import numpy as np
-
-    from derive.control.grid import mass_function
-    from derive.sim.plant import decay_mode
-
-    s = replace(d.arm.simulation, sample_time=sample_time)
-    J = mass_function(d)(np.array([s.initial_theta], dtype=float))[0]
-    return decay_mode(d.dynamics, dict(d.dynamics.values), s, s.viscous_friction, s.coulomb_friction,
-                      J=J)["substeps"]
-
-
 def _write_new(path: Path, text: str) -> None:
     """Write ``text`` to ``path``, never replacing a file: a temporary file in the same
     folder, then a hard link to the final name (fails if it exists)."""
@@ -399,7 +331,9 @@ def run(args) -> int:
                           "the URDF's robot name" if robot.name else "the URDF file's name")
     notes = (renamed,) if renamed else ()
     draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
-    gain, dyn = choose_gain(draft, out, found.chain)
+    from derive.cli.init_numbers import choose_gain, rk4_substeps, stated_limits
+
+    gain, _ = choose_gain(draft, out, found.chain)
     text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
     from derive.control.starter import fit_to_limits
 

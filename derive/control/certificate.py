@@ -43,6 +43,8 @@ __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Rep
 
 FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding (~ n eps ||N||)
 DEFAULT_BUDGET = 20_000   # cells per decision
+SEARCH_SHARE = 10           # the searches for the largest box and rate (figures, not obligations) get
+                            # DEFAULT_BUDGET / SEARCH_SHARE cells per try: a try that does not prove costs its whole budget
 MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
 
@@ -299,10 +301,17 @@ class ObserverCertificate:
             return 0.0
         if self.model.m == 0:
             return math.inf
-        K = -(self.matrices(W, shape, 1.0, 0.0, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))
         Li = np.linalg.inv(np.linalg.cholesky(A))
-        C = np.einsum("pab,pvbc,pdc->pvad", Li, K, Li)
-        top = np.linalg.eigvalsh(C)[..., -1].max()
+        if exact or self.split is None:
+            # K = J'(theta, s) at the vertices s, linear in s: the vertices -s give -K, so half of them
+            # and both ends of the spectrum give every lambda_max
+            half = self.speeds(shape, 1.0, True)[self.all_signs[:, 0] > 0]
+            K = np.einsum("vk,pkij->pvij", half, self.model.dJ(q))
+            lam = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))
+            top = max(lam[..., -1].max(), -lam[..., 0].min())
+        else:
+            K = -(self.matrices(W, shape, 1.0, 0.0, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))
+            top = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))[..., -1].max()
         return math.inf if top <= 0 else float(1.0 / top)
 
     def rate_supremum(self, W, shape, v: float, count: int = 4096, exact: bool = False) -> float:
@@ -347,20 +356,24 @@ class Report:
 TRIES = (0.99, 0.97, 0.9, 0.7, 0.5, 0.25, 0.1)
 
 
-def _best(decide, sup: float, cap: float | None = None) -> tuple[float, Decision | None]:
-    """The largest fraction of ``sup`` (of TRIES) that ``decide`` proves, and its decision."""
+def _best(decide, sup: float, cap: float | None = None, floor: float = 0.0,
+          floor_decision: Decision | None = None) -> tuple[float, Decision | None]:
+    """The largest fraction of ``sup`` (of TRIES) that ``decide`` proves, and its decision; tries at or
+    below ``floor`` (proved already, by ``floor_decision``) are not made: (floor, floor_decision) then."""
     if not (sup > 0):
-        return 0.0, None
+        return (floor, floor_decision) if floor > 0 else (0.0, None)
     top = sup if cap is None or not math.isfinite(sup) else min(sup, cap)
     if not math.isfinite(top):
         return math.inf, None
     last = None
     for f in TRIES:
+        if floor > 0 and top * f <= floor:
+            return floor, floor_decision
         dec = decide(top * f)
         last = dec
         if dec.verdict is Verdict.PROVED:
             return top * f, dec
-    return 0.0, last
+    return (floor, floor_decision) if floor > 0 else (0.0, last)
 
 
 def largest_proved_speed(cert: ObserverCertificate, W, shape, beta: float = 0.0, budget: int = DEFAULT_BUDGET,
@@ -394,13 +407,23 @@ def report(d, W=None, budget: int = DEFAULT_BUDGET, samples: int = 4096) -> Repo
                       seconds=time.perf_counter() - start, constant=True)
     # the search starts from the supremum of what the certificate can prove (the split's sound
     # form), the report states N's own numeric supremum
+    # the obligations first, on the whole budget: the stated box at rate 0, and the stated observer_rate on it;
+    # the searches for the largest box and rate (figures) start above what they proved, SEARCH_SHARE's budget a try
+    search = max(1, budget // SEARCH_SHARE)
     sup_v = cert.speed_supremum(Wn, shape, 0.0, samples, exact=True)
-    speed, sdec = largest_proved_speed(cert, Wn, shape, 0.0, budget, samples)
     v_rate = 1.0 if stated else 0.0
     stated_dec = cert.decide(Wn, shape, 1.0, 0.0, budget) if stated else None
+    proved = stated_dec is not None and stated_dec.verdict is Verdict.PROVED
+    speed, sdec = _best(lambda v: cert.decide(Wn, shape, v, 0.0, search),
+                        cert.speed_supremum(Wn, shape, 0.0, samples), floor=1.0 if proved else 0.0,
+                        floor_decision=stated_dec)
+    need = float(d.arm.controller.observer_rate)
+    need_dec = cert.decide(Wn, shape, v_rate, need, budget) if need > 0 and (proved or not stated) else None
+    need_ok = need_dec is not None and need_dec.verdict is Verdict.PROVED
     sup_b = cert.rate_supremum(Wn, shape, v_rate, samples, exact=True)
-    rate, rdec = _best(lambda b: cert.decide(Wn, shape, v_rate, b, budget),
-                       cert.rate_supremum(Wn, shape, v_rate, samples))
+    rate, rdec = _best(lambda b: cert.decide(Wn, shape, v_rate, b, search),
+                       cert.rate_supremum(Wn, shape, v_rate, samples), floor=need if need_ok else 0.0,
+                       floor_decision=need_dec)
     return Report(W=tuple(map(tuple, Wn.tolist())), shape=tuple(shape.tolist()), stated=stated, speed=speed,
                   speed_sup=sup_v, speed_decision=sdec, rate=rate, rate_sup=sup_b, rate_decision=rdec,
                   stated_decision=stated_dec, unbounded=unbounded, seconds=time.perf_counter() - start)

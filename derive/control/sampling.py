@@ -137,7 +137,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     # at its result; points that fail there join the subset and the search starts again (it ends: the
     # subset grows each time, up to the whole grid). Stable up to DT_MAX is checked on the whole grid.
     P = len(pts)
-    subset, hi = np.arange(0, P, max(1, P // SUBSET)), None
+    # points where another form's search failed on this grid join from the start (the fast modes are
+    # often the same: the box's corners, a light joint's damping)
+    hints = _cached(_HINTS, d, "hints", set) if points is None else set()
+    subset, hi = np.union1d(np.arange(0, P, max(1, P // SUBSET)), np.array(sorted(hints), dtype=int)), None
     while True:
         rho = radii(DT_MIN, subset)
         if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
@@ -161,6 +164,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
                 if failed is None:
                     return SampleLimit(form, observer, math.inf, math.inf, P, None)
                 subset = np.union1d(subset, failed)
+                hints.update(failed.tolist())
                 continue
         else:
             safe = hi / 2
@@ -181,6 +185,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
             return done(lo, bad)
         hi = lo
         subset = np.union1d(subset, np.flatnonzero(rho >= 1.0))
+        hints.update(np.flatnonzero(rho >= 1.0).tolist())
 
 
 def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | None:
@@ -310,6 +315,7 @@ def _residual(M: np.ndarray, L: dict, K: np.ndarray, dt: float) -> np.ndarray:
 _LIMITS: dict = {}
 _GRIDS: dict = {}
 _LINEAR: dict = {}
+_HINTS: dict = {}
 _LOOPS: dict = {}
 
 

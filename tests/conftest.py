@@ -12,11 +12,11 @@ from tests import hypothesis_profiles  # noqa: F401 - loads the ci or fuzz profi
 
 @pytest.fixture(scope="session", autouse=True)
 def _simulate_cache_in_a_temporary_folder(tmp_path_factory):
-    """derive simulate's cache (derive.sim.cache) in a folder of this session, never the user's:
+    """derive's caches (derive.cache: simulate's and show's) in a folder of this session, never the user's:
     the commands the tests run, in process or as subprocesses, inherit the variable."""
     import os
 
-    from derive.sim.cache import ENV
+    from derive.cache import ENV
 
     old = os.environ.get(ENV)
     os.environ[ENV] = str(tmp_path_factory.mktemp("derive-cache"))

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 # command -> (module, help)
 COMMANDS = {
-    "show": ("derive.cli.show", "print the derived dynamics, gains and laws"),
+    "show": ("derive.cli.show_command", "print the derived dynamics, gains and laws"),
     "check": ("derive.cli.check", "check the paper's claims as proof obligations"),
     "generate": ("derive.cli.generate", "write the C and Python controllers of an arm"),
     "embedded": ("derive.embedded.qemu", "cross-compile and run the C controller on emulated Cortex-M boards"),
@@ -62,7 +62,7 @@ def _parser(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 def add_arm_argument(parser: argparse.ArgumentParser) -> None:
     """The optional positional ARM every command takes."""
-    from derive.model.spec import DEFAULT_ARM
+    from derive.paths import DEFAULT_ARM
 
     parser.add_argument("arm", nargs="?", default=None,
                         help=f"arm file, or the name of a packaged arm (default {DEFAULT_ARM})")

@@ -2,14 +2,10 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from pathlib import Path
 
 import jinja2
 
-_PACKAGE = Path(__file__).resolve().parents[1]
-# an installed wheel: derive/templates (setup.py copies them there); a source tree or an
-# editable install: the repository's top-level templates/
-TEMPLATES = _PACKAGE / "templates" if (_PACKAGE / "templates").is_dir() else _PACKAGE.parent / "templates"
+from derive.paths import TEMPLATES
 
 
 @lru_cache(maxsize=None)

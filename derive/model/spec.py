@@ -60,11 +60,10 @@ from derive.model.singular import unmoved_joint
 from derive.model.rigid import rational_unit
 from derive.model.urdf import urdf_chain
 
-__all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
 from derive.model.sweepspec import SweepSpec, parse_sweep
+from derive.paths import ARMS_DIR, DEFAULT_ARM, packaged_arms, resolve_arm_path  # noqa: F401 (re-exported)
 
-DEFAULT_ARM = "glasgow_2link"
-ARMS_DIR = Path(__file__).parent / "arms"
+__all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
 MAX_FILE_BYTES = 1 << 20   # an arm file is a few kB; never read /dev/zero whole
 _MISSING = object()
 _ZERO = Fraction(0)
@@ -273,27 +272,6 @@ def _drives(motors: tuple[Motor, ...], frictions: tuple[tuple[Fraction, str], ..
         params += ps
     order = sorted(params, key=lambda p: _KINDS.index(p.symbol.name.rstrip("0123456789")))
     return tuple(acts), tuple(order)
-
-
-def packaged_arms() -> tuple[str, ...]:
-    """Names of the arm files shipped in ``derive/model/arms``."""
-    return tuple(sorted(p.stem for p in ARMS_DIR.glob("*.toml")))
-
-
-def resolve_arm_path(arm: str | Path | None) -> Path:
-    """A path, or the name of a packaged arm, or None (the default arm).
-
-    A name without a suffix is, in this order, the name of a packaged arm, a file
-    of that name, or that name with ``.toml`` appended (``derive show my3`` reads
-    ``./my3.toml``)."""
-    if arm is None:
-        return ARMS_DIR / f"{DEFAULT_ARM}.toml"
-    path = Path(arm)
-    if path.suffix != ".toml" and str(arm) in packaged_arms():
-        return ARMS_DIR / f"{arm}.toml"
-    if path.suffix == "" and not path.exists() and Path(f"{arm}.toml").is_file():
-        return Path(f"{arm}.toml")
-    return path
 
 
 def load_arm(path: str | Path | None = None) -> Arm:

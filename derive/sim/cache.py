@@ -21,67 +21,26 @@ cached: every ``derive simulate`` integrates the plant and computes its metrics 
 """
 from __future__ import annotations
 
-import functools
 import hashlib
 import io
-import os
 import pickle
-import tempfile
-import tomllib
 from pathlib import Path
 from typing import Callable, TypeVar
 
 import numpy as np
 
-ENV = "DERIVE_CACHE_DIR"
+from derive.cache import ENV, cache_dir, code_fingerprint, read_files, write_atomic as _write_atomic
+
+__all__ = ["ENV", "SimCache", "cache_dir", "code_fingerprint", "entry_key"]
+
 FORMAT = 1          # the layout of an entry; a change makes every old entry a miss
 T = TypeVar("T")
 
 
-def cache_dir() -> Path:
-    """The folder of the cache: ``$DERIVE_CACHE_DIR``, else ``user_cache_dir("derive")``."""
-    if os.environ.get(ENV):
-        return Path(os.environ[ENV])
-    from platformdirs import user_cache_dir
-
-    return Path(user_cache_dir("derive"))
-
-
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """derive's version and the sha256 of its code and templates (every file of the package
-    and of the templates folder, by relative path)."""
-    import derive
-    from derive.codegen.render import TEMPLATES
-
-    h = hashlib.sha256(f"derive {derive.__version__}\0".encode())
-    package = Path(derive.__file__).resolve().parent
-    for root in (package, TEMPLATES):
-        for p in sorted(root.rglob("*")):
-            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so"):
-                h.update(f"{root.name}/{p.relative_to(root).as_posix()}\0".encode())
-                h.update(hashlib.sha256(p.read_bytes()).digest())
-    return h.hexdigest()
-
-
 def _read_files(arm) -> list[tuple[str, bytes]]:
-    """The arm file's bytes and those of every file it reads (the URDF, the MuJoCo model);
-    an arm not from a file: its description (repr) instead."""
-    source = Path(arm.source)
-    try:
-        raw = source.read_bytes()
-    except OSError:
-        return [("arm", repr(arm).encode())]
-    out = [("arm", raw)]
-    data = tomllib.loads(raw.decode("utf-8", errors="replace"))
-    for table, key in (("arm", "urdf"), ("simulation", "mujoco_model")):
-        name = data.get(table, {}).get(key) if isinstance(data.get(table), dict) else None
-        if isinstance(name, str) and name:
-            try:
-                out.append((f"{table}.{key}", (source.parent / name).read_bytes()))
-            except OSError:
-                out.append((f"{table}.{key}", b"missing"))
-    return out
+    """The arm file's bytes and those of every file it reads (derive.cache.read_files); an arm not
+    from a file: its description (repr) instead."""
+    return read_files(Path(arm.source)) or [("arm", repr(arm).encode())]
 
 
 def entry_key(arm, options: dict[str, object]) -> str:
@@ -95,28 +54,6 @@ def entry_key(arm, options: dict[str, object]) -> str:
     h.update(repr(arm.simulation).encode())
     h.update(repr(sorted(options.items())).encode())
     return h.hexdigest()
-
-
-def _write_atomic(path: Path, data: bytes) -> bool:
-    """``data`` to ``path`` through a temporary file in its folder and os.replace; whether it was
-    written. An error leaves no temporary file and is not raised (a cache that cannot write is
-    only slower)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    except OSError:
-        return False
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-        return True
-    except OSError:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        return False
 
 
 class SimCache:

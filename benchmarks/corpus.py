@@ -70,7 +70,8 @@ def run_command(argv: list[str], cwd: Path, timeout: float) -> Run:
     goals read (the wall time of a shared machine measures the other loads as much as the command)."""
     start = time.perf_counter()
     with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+        env = dict(os.environ, DERIVE_CACHE_DIR=str(Path(cwd) / ".derive-cache"))   # cold, and never the user's
+        proc = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
         code, usage = None, None
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)

@@ -1,8 +1,9 @@
-"""MuJoCo in the loop (issue 21): simulated seconds per wall second of the default experiment
+"""MuJoCo in the loop (issue 21): simulated seconds per CPU second (the process's own, so another load on
+the machine does not count; on an idle core it is the wall's) of the default experiment
 (MPC, DOBC and NPID, 30 s each) with MuJoCo integrating the arm's URDF, beside derive's compiled
 plant in the same run, for the default 2-link arm (its URDF, tests/data/urdf/glasgow_2link.urdf)
-and the 7-joint Panda (tests/data/urdf/panda.toml at a 1 ms sample time, below its 1.23 ms DOBC
-and NPID limit); and MuJoCo alone (mj_step of the same model, no controller) for scale. One
+and the 7-joint Panda (tests/data/urdf/panda.toml, a starter file of derive init, at a 0.5 ms sample
+time, below its 0.72 ms DOBC and NPID limit, one or two RK4 steps per sample); and MuJoCo alone (mj_step of the same model, no controller) for scale. One
 process, one core. Checked: the two plants agree (friction off) within the tests' tolerance."""
 from __future__ import annotations
 
@@ -28,13 +29,18 @@ def _arm(folder: Path, name: str, simulation: str):
         simulation += f'mujoco_model = "{DATA / "glasgow_2link.urdf"}"\n'
     else:
         text = (DATA / f"{name}.toml").read_text()
+        if "\n[simulation]" in text:   # a starter file's own table: replaced by the benchmark's
+            head, _, rest = text.partition("\n[simulation]")
+            tables = rest.split("\n[", 1)
+            text = head + ("\n[" + tables[1] if len(tables) > 1 else "\n")
         shutil.copy(DATA / f"{name}.urdf", folder / f"{name}.urdf")
     (folder / f"{name}.toml").write_text(text + "\n[simulation]\n" + simulation)
     return load_arm(folder / f"{name}.toml")
 
 
 def _rates(arm, substeps: int) -> dict:
-    """Simulated s per wall s of the three controllers on each plant, the build, MuJoCo alone."""
+    """Simulated s per CPU s (time.process_time: this process, one thread) of the three controllers on each
+    plant, the build [wall s], MuJoCo alone."""
     import mujoco
     import numpy as np
 
@@ -51,17 +57,17 @@ def _rates(arm, substeps: int) -> dict:
     traces = {}
     for plant in (dv, mj):
         plant.run(d, loop, replace(s, duration=0.1), "npid")   # load the library, compile the model once
-        start = time.perf_counter()
+        start = time.process_time()
         traces[plant.name] = [plant.run(d, loop, s, name) for name in NAMES]
-        out[plant.name] = s.duration * len(NAMES) / (time.perf_counter() - start)
+        out[plant.name] = s.duration * len(NAMES) / (time.process_time() - start)
     gap = compare(traces["mujoco"], traces["derive"], {})["max_theta_difference"]
     assert gap <= 1e-8, f"{arm.name}: MuJoCo's and derive's plants differ by {gap} rad (friction off)"
     c = mj.model(d, s)
     data = mujoco.MjData(c.model)
     steps = int(round(s.duration / c.model.opt.timestep))
-    start = time.perf_counter()
+    start = time.process_time()
     mujoco.mj_step(c.model, data, nstep=steps)
-    out["alone"] = s.duration / (time.perf_counter() - start)
+    out["alone"] = s.duration / (time.process_time() - start)
     out["gap"] = gap
     out["h"] = c.model.opt.timestep
     assert np.isfinite(data.qpos).all()
@@ -72,8 +78,8 @@ def run() -> Section:
     with tempfile.TemporaryDirectory(prefix="derive-bench-mujoco-") as tmp:
         # the Panda with the simspec default Coulomb friction (its URDF's <dynamics friction="0.0"> is
         # otherwise the default, derive.model.spec): MuJoCo's loop then runs derive's passive callback too
-        panda = "sample_time = 0.001\ncoulomb_friction = [0.05, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01]\n"
-        cases = (("glasgow_2link", "", 4), ("panda", panda, 4), ("panda", panda, 2))
+        panda = "sample_time = 0.0005\ncoulomb_friction = [0.05, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01]\n"
+        cases = (("glasgow_2link", "", 4), ("panda", panda, 2), ("panda", panda, 1))
         results = []
         for name, simulation, substeps in cases:
             folder = Path(tmp) / f"{name}{substeps}"
@@ -85,7 +91,7 @@ def run() -> Section:
              f"{r['build']:.1f} s", f"{r['gap']:.1e}") for arm, n, r in results]
     speed = table(("arm", "joints", "sample", "RK4 step (per sample)", "derive's plant, compiled",
                    "MuJoCo in the loop", "ratio", "MuJoCo alone", "build", "max theta gap [rad]"), rows)
-    note = ("Simulated seconds per wall second, three controllers of 30 s each, one process (one core); both plants "
+    note = ("Simulated seconds per CPU second of this process (time.process_time), three controllers of 30 s each, one process (one core); both plants "
             "in one compiled library (the controller compiled once), MuJoCo's model compiled once per run's settings "
             "(a few ms). MuJoCo in the loop: the generated controller at the sample time and mj_step (RK4) substeps "
             "times per sample, all in C (derive.sim.mujoco.loop); MuJoCo alone: mj_step of the same model with no "
@@ -93,5 +99,5 @@ def run() -> Section:
             "theta_derive| over the runs.")
     panda = {n: r["mujoco"] for arm, n, r in results if arm.name == "panda"}
     goals = (Goal("Panda (7 joints) with MuJoCo in the loop >= 50x real time on one core (RK4 at 0.5 ms, the "
-                  "default step)", panda[2] >= 50, f"{panda[2]:.0f}x; {panda[4]:.0f}x at 0.25 ms"),)
+                  "default step)", panda[1] >= 50, f"{panda[1]:.0f}x; {panda[2]:.0f}x at 0.25 ms"),)
     return Section(TITLE, (speed, note), goals)

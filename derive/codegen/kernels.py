@@ -19,7 +19,7 @@ from enum import Enum
 import sympy as sp
 
 from derive.codegen.ldl import factor_symbols, ldl_factor, ldl_solve
-from derive.dynamics.dag import Memo, free_symbols
+from derive.dynamics.dag import Memo, free_symbols, times
 from derive.errors import CoverageError
 from derive.control.pipeline import Derivation
 
@@ -86,18 +86,6 @@ def check_coverage(spec: KernelSpec) -> None:
                             f"{', '.join(missing)}")
 
 
-def _times(M: sp.Matrix, v: sp.Matrix) -> sp.Matrix:
-    """M v for a small matrix M (B, B^-1: diagonal, numbers or symbols) and a column v of large
-    expressions, entry by entry (zeros left out, a coefficient 1 not multiplied): SymPy's matrix
-    product goes through its domain matrices, which on a large expression queried its assumptions
-    for minutes (B u* of the xArm6, B = I); the products themselves are SymPy's own."""
-    rows = []
-    for i in range(M.rows):
-        terms = [v[k] if M[i, k] == 1 else M[i, k] * v[k] for k in range(M.cols) if M[i, k] != 0]
-        rows.append(sp.Add(*terms) if len(terms) != 1 else terms[0])
-    return sp.Matrix(rows)
-
-
 def _flat(m: sp.Matrix) -> tuple:
     """Row-major entries of a matrix (C order)."""
     return tuple(m[i, j] for i in range(m.rows) for j in range(m.cols))
@@ -158,7 +146,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     W, B = d.observer.W, d.dynamics.B
     J = value(d.dynamics.J)
     A = J + dt_sym * value(W)      # backward Euler: J + dt W
-    z0 = _times(value(B), dhat0) - value(W) * sp.Matrix(s.dtheta)
+    z0 = times(value(B), dhat0) - value(W) * sp.Matrix(s.dtheta)
     if implicit:
         xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
         Binv = value(B).inv()   # B is diagonal (eq. 12)
@@ -174,7 +162,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         Wx0 = value(W) * sp.Matrix(x0)
         z0_outputs = (Port("z0", _flat(-Wx0 - value(W) * sp.Matrix(s.dtheta)),
                            "z(0) = B dhat(0) - W theta'(0), dhat(0) = -B^-1 W x0, (J + dt W) x0 = J xi(0)"),
-                      Port("u0", _flat(_times(Binv, value(d.dynamics.G) + Wx0)),
+                      Port("u0", _flat(times(Binv, value(d.dynamics.G) + Wx0)),
                            "u0 = B^-1 (G - W theta' - z0): the first backward-Euler step leaves z0"))
         init_inputs = (*x[:4], dt, *params)
         init_doc = ("Observer state giving the sampled initial estimate dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)), "
@@ -295,7 +283,7 @@ def momentum_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], dt: Por
             Port("u", _flat(u_star - value(mom.dhat_rnea)),
                  "u* - B^-1 r, r = K (J theta' - m): eq. 27 with the momentum estimate"),
             Port("dhat", _flat(value(mom.dhat_rnea)), "dhat = B^-1 K (J theta' - m)"),
-            Port("m_rate", _flat(_times(B, u_star) + value(mom.beta_rnea)),
+            Port("m_rate", _flat(times(B, u_star) + value(mom.beta_rnea)),
                  "B u* + C^T theta' - g - F theta': m' at the law's u")),
             "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, "
             "and the observer's rate m' at that u"),

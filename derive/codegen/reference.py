@@ -22,6 +22,7 @@ import sympy as sp
 from flint import arb, arb_mat
 
 from derive.codegen.balls import BallFunction, ball, working_precision
+from derive.dynamics.dag import times
 from derive.dynamics.program import lambdify
 from derive.control.pipeline import Derivation
 
@@ -71,10 +72,10 @@ class Reference:
                             d.numeric(d.observer.J_solve_rhs))
         self._W = d.W
         self._dhat = fn("dhat", list(s.dtheta + s.z), d.dhat)
-        self._z0 = fn("dobc_init", x[: 4 * n], d.B * d.dhat0 - d.W * sp.Matrix(s.dtheta))
+        self._z0 = fn("dobc_init", x[: 4 * n], times(d.B, d.dhat0) - d.W * sp.Matrix(s.dtheta))
         self._J = fn("J", list(s.theta), d.J)
         self._xi = fn("xi", x + list(s.int_e), d.numeric(d.npid.xi))   # u_npid = u* + B^-1 W xi
-        self._Binv_G = fn("Binv_G", list(s.theta + s.dtheta), d.B.inv() * d.G)
+        self._Binv_G = fn("Binv_G", list(s.theta + s.dtheta), times(d.B.inv(), d.G))
         mom = d.momentum   # the generalized-momentum observer (derive.control.momentum)
         self._mom = fn("mom", x + list(mom.m), d.u_mom)
         self._mom_rate = fn("mom_rate", list(s.theta + s.dtheta) + list(mom.m) + list(s.u), d.numeric(mom.m_rate))

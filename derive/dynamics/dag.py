@@ -185,3 +185,15 @@ class Substitution:
             return out.as_immutable() if isinstance(obj, sp.ImmutableMatrix) else out
         return xreplace(sp.sympify(obj), self.rule, self.memo, self.keep_sums)
 
+
+def times(M: sp.Matrix, v: sp.Matrix) -> sp.Matrix:
+    """M v for a small matrix M (B, B^-1: diagonal, numbers or symbols) and a column v of large
+    expressions, entry by entry (zeros left out, a coefficient 1 not multiplied): SymPy's matrix
+    product goes through its sparse domain matrices, which ask whether each entry is zero: on a
+    large expression that query ran for minutes (B u* of the xArm6, B = I, in derive.codegen's
+    kernels and reference); the products themselves are SymPy's own."""
+    rows = []
+    for i in range(M.rows):
+        terms = [v[k] if M[i, k] == 1 else M[i, k] * v[k] for k in range(M.cols) if M[i, k] != 0]
+        rows.append(sp.Add(*terms) if len(terms) != 1 else terms[0])
+    return sp.Matrix(rows)

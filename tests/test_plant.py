@@ -182,3 +182,76 @@ def test_show_at_rejects_a_bad_pose_with_one_message_and_exit_2(capsys, at):
     assert main(["show", "--at", at]) == 2
     err = capsys.readouterr().err
     assert err.count("error") == 1 and "--at: expected theta=<2 numbers>" in err and repr(at) in err
+
+
+@pytest.fixture(scope="module")
+def light_tip(tmp_path_factory):
+    """The vertical 2-link arm with a 0.1 g second link and no payload or rotor on joint 2: J's condition
+    number 1.8e4 and W J^-1 in the tens of thousands of 1/s; its derivation and generated tree."""
+    import tomllib
+
+    from derive.model.spec import ARMS_DIR, arm_from_dict
+
+    data = tomllib.loads((ARMS_DIR / "vertical_2link.toml").read_text())
+    data["link"][1]["mass"] = 1e-4
+    data["point_mass"] = data["point_mass"][:1]
+    data["motor"][1]["rotor_inertia"] = 0.0
+    data["arm"]["name"] = "light_tip"
+    d = derive.derive(arm_from_dict(data, "light_tip.toml"))
+    return d, _generate(tmp_path_factory.mktemp("light"), d) / "c"
+
+
+def _run_selftest(tmp_path: Path, c: Path, test: str) -> str:
+    exe = compile_c(compilers()[0], [c / f"light_tip_{test}.c", c / "light_tip.c", c / "light_tip_kernels.c",
+                                     c / "light_tip_plant.c"], tmp_path / test,
+                    ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O2"])
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout
+    return proc.stdout
+
+
+def test_forward_dynamics_tolerance_follows_the_conditioning_of_J_eq12(tmp_path, light_tip):
+    """A linear solve with J (eq. 12: J theta'' = B (u + d) - G) loses digits as J's condition number grows, so
+    the plant self-test states per case max(1e-12, 16 kappa(J) u) (derive.codegen.plant.plant_selftest_view); a
+    flat 1e-12 failed on Tiago's torso and arm (kappa up to 3.8e4, errors 2.1e-12). On the light-tipped arm
+    (kappa 1.8e4) the stated tolerances are that rule on the 40-digit J, and the compiled self-test passes."""
+    import mpmath
+
+    from derive.codegen.plant import CONDITION_FACTOR, plant_cases, plant_selftest_view
+    from derive.codegen.views import arm_view
+
+    d, c = light_tip
+    view = plant_selftest_view(d, arm_view(d, "double", ParamsMode.BAKED), plant_view(d, "double", ParamsMode.BAKED))
+    tols = [float(x) for x in view.ddtheta_tol]
+    for case, tol in zip(plant_cases(Reference(d), len(tols)), tols):
+        with mpmath.workdps(40):
+            J = mpmath.matrix([[mpmath.mpf(x) for x in case.J[:2]], [mpmath.mpf(x) for x in case.J[2:]]])
+            kappa = float(mpmath.mnorm(J, mpmath.inf) * mpmath.mnorm(J ** -1, mpmath.inf))
+        assert kappa > 1e4 and tol == pytest.approx(CONDITION_FACTOR * kappa * 2.0 ** -53, rel=1e-9) and tol > 1e-12
+    assert re.search(r"^40 passed, 0 failed$", _run_selftest(tmp_path, c, "plant_selftest"), re.M)
+
+
+def test_selftest_sequence_step_keeps_the_observers_own_recursion_contracting_eq21(tmp_path, light_tip):
+    """The controller self-test's 1000-step sequence steps each form's state by forward Euler (eq. 21: z by
+    I - dt W J^-1; the momentum observer by 1 - dt K) at inputs of its own. At the fixed 2^-10 s a light joint's
+    W J^-1 made z grow without bound (the Panda's float bound on z 4e28; this arm overflowed double and
+    generate stopped with a traceback): testvectors.sequence_dt halves the step until dt lambda <= 1 at
+    every input, the generated self-test states it and passes with bounds of the result's own size."""
+    import numpy as np
+
+    from derive.codegen import testvectors as tv
+
+    d, c = light_tip
+    ref = Reference(d)
+    dt = tv.sequence_dt(ref)
+    W = np.array(d.W.tolist(), dtype=float)
+    rates = [np.abs(np.linalg.eigvals(W @ np.linalg.inv(np.array([float(x) for x in ref.inertia(
+        tv.sequence_input(k, 2)[:2])]).reshape(2, 2)))).max() for k in range(129)]
+    assert dt < tv.SEQUENCE_DT and dt * max(rates) <= 1.0 < 2 * dt * max(rates)
+    text = (c / "light_tip_selftest.c").read_text()
+    assert f"seq_dt = {dt!r}" in text
+    z = re.search(r"seq_z\[N\] = \{ ([^}]*) \}", text)
+    tol = re.search(r"tol_z\[N\] = \{ ([^}]*) \}", text)
+    assert z and tol
+    assert max(float(x) for x in tol[1].split(",")) < 1e-6 * max(1.0, max(abs(float(x)) for x in z[1].split(",")))
+    assert re.search(r"^94 passed, 0 failed$", _run_selftest(tmp_path, c, "selftest"), re.M)

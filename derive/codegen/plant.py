@@ -146,6 +146,9 @@ def plant_c_files(d: Derivation, v: ArmView, mode: ParamsMode) -> dict[str, str]
     }
 
 
+CONDITION_FACTOR = 16.0   # the forward dynamics' tolerance per unit roundoff and unit of J's condition number
+
+
 @dataclass(frozen=True)
 class PlantCase:
     """One state (theta, theta', u, d) and the reference quantities at it (floats)."""
@@ -187,22 +190,40 @@ class PlantSelftestView:
     cases: tuple[PlantCase, ...]
     tol: tuple[tuple[str, str], ...]   # (function name, C literal)
     fabs: str
+    ddtheta_tol: tuple[str, ...] = ()   # per case: forward dynamics' tolerance (C literals; see plant_selftest_view)
 
 
 def plant_selftest_view(d: Derivation, v: ArmView, pv: PlantView, count: int = 8) -> PlantSelftestView:
-    """Reference vectors at ``count`` states; double 1e-12, float 16 (K) 2^-24 per kernel of K operations."""
+    """Reference vectors at ``count`` states; double 1e-12, float 16 (K) 2^-24 per kernel of K operations;
+    the forward dynamics (a linear solve with J) at each case at least CONDITION_FACTOR kappa(J) u, kappa the
+    infinity-norm condition number of the reference J there and u the unit roundoff: the solve's relative
+    error grows with J's conditioning (Higham, Accuracy and Stability, thm. 7.2), and a vendor arm's J is
+    far from the packaged arms' (Tiago's torso and arm: kappa up to 3.8e4, errors 2.1e-12)."""
+    import numpy as np
+
     from derive.codegen import testvectors as tv
     from derive.codegen.printing import c_literal
     from derive.codegen.reference import Reference
 
     ref = Reference(d)
+    raw = plant_cases(ref, count)
     lit = lambda xs: tuple(c_literal(x, v.real) for x in xs)  # noqa: E731
-    cases = tuple(PlantCase(*(lit(getattr(c, f)) for f in c.__dataclass_fields__)) for c in plant_cases(ref, count))
+    cases = tuple(PlantCase(*(lit(getattr(c, f)) for f in c.__dataclass_fields__)) for c in raw)
     ops = {k.name: k.operations for k in pv.kernels}
+    unit = 2.0 ** -53 if v.real == "double" else 2.0 ** -24
     if v.real == "double":
         tol = tuple((f.name, c_literal(tv.DOUBLE_TOL, "double")) for f in pv.functions)
         rule = f"double {tv.DOUBLE_TOL:g}"
     else:
         tol = tuple((f.name, c_literal(tv.float_bound(max(ops[f.name], 1)), "float")) for f in pv.functions)
         rule = "float 16 K 2^-24 for a kernel of K operations (derive.codegen.testvectors)"
-    return PlantSelftestView(rule=rule, cases=cases, tol=tol, fabs="fabsf" if v.real == "float" else "fabs")
+    base = dict(tol)["forward_dynamics"]
+    fd = []
+    for c in raw:
+        J = np.array(c.J, dtype=float).reshape(d.n, d.n)
+        kappa = float(np.linalg.norm(J, np.inf) * np.linalg.norm(np.linalg.inv(J), np.inf))
+        fd.append(max(float(base.rstrip("f")), CONDITION_FACTOR * kappa * unit))
+    rule += (f"; forward_dynamics at least {CONDITION_FACTOR:g} kappa(J) u per case (kappa: J's infinity-norm "
+             f"condition number there, u = 2^{-53 if v.real == 'double' else -24})")
+    return PlantSelftestView(rule=rule, cases=cases, tol=tol, fabs="fabsf" if v.real == "float" else "fabs",
+                             ddtheta_tol=tuple(c_literal(x, v.real) for x in fd))

@@ -94,6 +94,7 @@ class SequenceVectors:
     dobc_states: np.ndarray     # (steps, n) z before each step
     mom_states: np.ndarray      # (steps, n) the momentum observer's m before each step
     radii: np.ndarray           # (steps, 6, n) radii of the reference's u and state at each step (npid, dobc, mom)
+    dt: float = SEQUENCE_DT     # the sequence's time step (sequence_dt)
 
 
 def sequence_input(k: int, n: int) -> list[float]:
@@ -149,12 +150,33 @@ def cases(ref: Reference, count: int, seed: int = 20261122) -> tuple[Case, ...]:
     return tuple(out)
 
 
+def sequence_dt(ref: Reference, steps: int = SEQUENCE_STEPS) -> float:
+    """The sequence's time step: SEQUENCE_DT, halved until the forms' own forward-Euler recursions
+    contract at every input of the sequence, dt lambda <= 1 for every eigenvalue lambda of W J^-1(theta_k)
+    (the explicit observer, eq. 21: z steps by I - dt W J^-1) and of the momentum observer's K (1 - dt K).
+    A light joint's W J^-1 of thousands of 1/s made the fixed step's z grow without bound: the Panda's
+    float bound on z reached 4e28, a 2-link arm with a 0.1 g tip overflowed double. A power of two, exact
+    in float and double."""
+    n = ref.n
+    rate = float(np.max(np.diag(np.array(ref._d.numeric(ref._d.momentum.K).tolist(), dtype=float))))
+    if not ref.implicit:
+        W = np.array(ref._W.tolist(), dtype=float)
+        thetas = {tuple(sequence_input(k, n)[:n]) for k in range(min(steps, 129))}   # the inputs repeat every 129
+        for theta in sorted(thetas):
+            J = np.array([to_float(a) for a in ref.inertia(list(theta))]).reshape(n, n)
+            rate = max(rate, float(np.abs(np.linalg.eigvals(np.linalg.solve(J, W.T).T)).max()))
+    dt = SEQUENCE_DT
+    while dt * rate > 1.0 and dt > 2.0 ** -40:
+        dt /= 2
+    return dt
+
+
 def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> SequenceVectors:
     """Final u and state after ``steps`` steps of each form from init (npid, dobc,
     and the momentum observer mom from mom_init, the same forward-Euler step in
     both observer builds).
 
-    Each step starts from the midpoints of the previous state (a ball carried
+    The time step is :func:`sequence_dt`'s. Each step starts from the midpoints of the previous state (a ball carried
     through 1000 steps would measure interval arithmetic's overestimation,
     not the error) and its own result is certified. How the steps' radii r_k
     propagate to the end is bounded as the generated code's errors are, with
@@ -162,11 +184,12 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
     e_{k+1} <= |A_k| e_k + r_k. The precision is raised until that bound too
     is below 10^-DIGITS of the result."""
     n = ref.n
+    dt = sequence_dt(ref, steps)
 
     def compute():
         int_e = [0] * n
-        z = [v.mid() for v in ref.dobc_init(sequence_input(0, n), SEQUENCE_DT)]
-        held = [v.mid() for v in ref.dobc_held(sequence_input(0, n), SEQUENCE_DT)] if ref.implicit else None
+        z = [v.mid() for v in ref.dobc_init(sequence_input(0, n), dt)]
+        held = [v.mid() for v in ref.dobc_held(sequence_input(0, n), dt)] if ref.implicit else None
         m = [v.mid() for v in ref.mom_init(sequence_input(0, n))]
         nu = du = mu = None
         states = np.zeros((3, steps, n))
@@ -174,23 +197,23 @@ def sequence(ref: Reference, bounds: ApiBounds, steps: int = SEQUENCE_STEPS) -> 
         for k in range(steps):
             x = sequence_input(k, n)
             states[0, k], states[1, k], states[2, k] = _floats(int_e), _floats(z), _floats(m)
-            nu, int_e = ref.npid_step(int_e, x, SEQUENCE_DT)
-            du, z = (ref.dobc_step_implicit(z, held, x, SEQUENCE_DT) if ref.implicit
-                     else ref.dobc_step(z, x, SEQUENCE_DT))
-            mu, m = ref.mom_step(m, x, SEQUENCE_DT)
+            nu, int_e = ref.npid_step(int_e, x, dt)
+            du, z = (ref.dobc_step_implicit(z, held, x, dt) if ref.implicit
+                     else ref.dobc_step(z, x, dt))
+            mu, m = ref.mom_step(m, x, dt)
             if not all(certified(v) for v in (nu, int_e, du, z, mu, m)):
                 return None
             radii[k] = [[to_float(v.rad()) for v in vec] for vec in (nu, int_e, du, z, mu, m)]
             int_e, z, m = [v.mid() for v in int_e], [v.mid() for v in z], [v.mid() for v in m]
             held = [v.mid() for v in du] if ref.implicit else None
-        out = SequenceVectors(*map(_floats, (nu, int_e, du, z, mu, m)), *states, radii)
+        out = SequenceVectors(*map(_floats, (nu, int_e, du, z, mu, m)), *states, radii, dt)
         checked = (("npid", (0, 1), (out.npid_u, out.int_e)),) + (
             () if ref.implicit else (("dobc", (2, 3), (out.dobc_u, out.z)),)) + (   # implicit dobc: IMPLICIT_RULE
             ("mom", (4, 5), (out.mom_u, out.m)),)
         trajectory = {"npid": out.npid_states, "dobc": out.dobc_states, "mom": out.mom_states}
         for form, (iu, ist), (u, st) in checked:
             b_u, b_s = bounds.propagate(form, trajectory[form],
-                                        [sequence_input(k, n) for k in range(steps)], SEQUENCE_DT,
+                                        [sequence_input(k, n) for k in range(steps)], dt,
                                         radii[:, iu], radii[:, ist])
             if relative(b_u, u) > 10.0 ** -DIGITS or relative(b_s, st) > 10.0 ** -DIGITS:
                 return None
@@ -245,15 +268,15 @@ def sequence_tolerances(bounds: ApiBounds, seq: SequenceVectors, real: str) -> d
     """The tolerance of each element of the sequence's last u and final states."""
     n, steps = bounds.n, len(seq.npid_states)
     xs = [sequence_input(k, n) for k in range(steps)]
-    nu, ns, _ = bounds.sequence("npid", seq.npid_states, xs, SEQUENCE_DT)
-    mu, ms, _ = bounds.sequence("mom", seq.mom_states, xs, SEQUENCE_DT)   # the same step in both builds
+    nu, ns, _ = bounds.sequence("npid", seq.npid_states, xs, seq.dt)
+    mu, ms, _ = bounds.sequence("mom", seq.mom_states, xs, seq.dt)   # the same step in both builds
     out = {"seq_npid_u": tolerance(nu, seq.npid_u, real), "seq_int_e": tolerance(ns, seq.int_e, real),
            "seq_mom_u": tolerance(mu, seq.mom_u, real), "seq_m": tolerance(ms, seq.m, real)}
     if bounds.implicit:
         ops = bounds.operations("observer") + bounds.operations("dobc")
         return {**out, "seq_dobc_u": rule_tolerance(seq.dobc_u, real, ops, steps),
                 "seq_z": rule_tolerance(seq.z, real, ops, steps)}
-    du, ds, _ = bounds.sequence("dobc", seq.dobc_states, xs, SEQUENCE_DT)
+    du, ds, _ = bounds.sequence("dobc", seq.dobc_states, xs, seq.dt)
     return {**out, "seq_dobc_u": tolerance(du, seq.dobc_u, real), "seq_z": tolerance(ds, seq.z, real)}
 
 

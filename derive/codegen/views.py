@@ -197,6 +197,7 @@ class SelftestView:
     seq_tol: object
     steps: int
     dt: str
+    seq_dt: str
     c128: str
     c05: str
     fabs: str
@@ -252,6 +253,6 @@ def selftest_view(d: Derivation, v: ArmView, count: int = 8) -> SelftestView:
         cases=cases, tols=tuple(_namespace("Tol", {f: lit(t[f]) for f in t}) for t in tols),
         seq=_namespace("Seq", {f: lit(getattr(seq, f)) for f in seq_fields}),
         seq_tol=_namespace("SeqTol", {f: lit(t) for f, t in seq_tols.items()}),
-        steps=tv.SEQUENCE_STEPS, dt=c_literal(tv.SEQUENCE_DT, v.real), c128=c_literal(128.0, v.real),
+        steps=tv.SEQUENCE_STEPS, dt=c_literal(tv.SEQUENCE_DT, v.real), seq_dt=c_literal(seq.dt, v.real), c128=c_literal(128.0, v.real),
         c05=c_literal(0.5, v.real), fabs="fabsf" if v.real == "float" else "fabs",
         warnings=accuracy_warnings(v.real, acc, cond))

@@ -203,7 +203,7 @@ static void sequence_input(long k, glasgow_2link_input *in)
 
 int main(void)
 {
-    const real dt = 0.0009765625;
+    const real dt = 0.0009765625, seq_dt = 0.0009765625;   /* the cases' step; the sequence's (testvectors.sequence_dt) */
     glasgow_2link_input in;
     glasgow_2link_npid_state ns;
     glasgow_2link_dobc_state ds;
@@ -245,11 +245,11 @@ int main(void)
     codes |= glasgow_2link_mom_init(&ms, &in);
     for (k = 0; k < 1000; ++k) {
         sequence_input(k, &in);
-        codes |= glasgow_2link_npid_step(&ns, &in, dt, u, &clipped);
+        codes |= glasgow_2link_npid_step(&ns, &in, seq_dt, u, &clipped);
         if (k == 999) check("npid sequence u", 1000, u, seq_npid_u, tol_npid_u, N);
-        codes |= glasgow_2link_dobc_step(&ds, &in, dt, u, &clipped);
+        codes |= glasgow_2link_dobc_step(&ds, &in, seq_dt, u, &clipped);
         if (k == 999) check("dobc sequence u", 1000, u, seq_dobc_u, tol_dobc_u, N);
-        codes |= glasgow_2link_mom_step(&ms, &in, dt, u, &clipped);
+        codes |= glasgow_2link_mom_step(&ms, &in, seq_dt, u, &clipped);
         if (k == 999) check("mom sequence u", 1000, u, seq_mom_u, tol_mom_u, N);
     }
     check("npid sequence int_e", 1000, ns.int_e, seq_int_e, tol_int_e, N);

@@ -47,7 +47,7 @@ TEST_WORKERS ?= 2
 # DERIVE_REQUIRE_PINNED: the constraints' versions are installed, so a test that compares bytes
 # made under them (tests/test_generated.py) fails instead of skipping when they are not.
 test: $(STAMP) $(WHEELHOUSE_STAMP) system-deps
-	DERIVE_REQUIRE_PINNED=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	DERIVE_REQUIRE_PINNED=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 # The property tests (hypothesis) with FUZZ_FACTOR times the examples of `make test` and
 # a new random seed each run (printed; `make fuzz SEED=n` repeats a run). `make test`

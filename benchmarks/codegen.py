@@ -7,11 +7,12 @@ For the default arm (glasgow_2link), with its parameters baked in:
   with ``gcc -O2`` together with a small timing driver (:data:`C_DRIVER`):
   10^6 calls over 16 varying inputs, results summed into a volatile sink,
   ``clock_gettime(CLOCK_MONOTONIC)``, best of 5 repeats;
-* the generated Python module's ``npid_step`` and ``dobc_step`` (timeit, best of 5);
+* the generated Python module's ``npid_step`` and ``dobc_step`` (timeit on the
+  process's CPU time, best of 5);
 * the NPID law u (kernel ``npid``) as a CasADi Function called from Python
   (:func:`derive.codegen.casadi_bridge.to_function`) and as ``sympy.lambdify``
   (``modules="math"``, ``cse=True``) of the Derivation's u_npid with e, e'
-  substituted (timeit, best of 5);
+  substituted (timeit on the process's CPU time, best of 5);
 * the same law with Pinocchio in C++ (``benchmarks/pinocchio_npid.cpp``: the
   2-link model built in code; once with crba + nonLinearEffects, once with
   rnea(q, v, a) = J a + h), ``g++ -O2`` against the pin wheel's headers and
@@ -21,6 +22,12 @@ For the default arm (glasgow_2link), with its parameters baked in:
 A step of the generated code does more than the bare law (finiteness checks,
 the integrator or observer update); the Pinocchio driver computes only u. The
 operation counts are those of each kernel after CasADi's CSE (double).
+
+The Python goal is a ratio in the same run: the slowest step (npid_step or
+dobc_step: argument checks, the kernels, the state update and the returned
+array) within :data:`PY_GOAL_RATIO` times the lambdified bare u (plain float
+arithmetic, no checks). Issue 23's goal, under 5 us where the step took 11.1 us,
+is 5x the lambdify figure of the README's table (0.95 us).
 """
 from __future__ import annotations
 
@@ -31,6 +38,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import timeit
 from pathlib import Path
 
@@ -52,7 +60,7 @@ REPEAT = 5
 PY_NUMBER = 2_000            # Python calls per timeit repeat
 NPID_GOAL_NS = 35.0
 PIN_SPEEDUP_GOAL = 10.0
-PY_GOAL_US = 10.0
+PY_GOAL_RATIO = 5.0          # slowest Python step per call / the bare law u by sympy.lambdify, same run
 AGREE = 1e-9                 # relative agreement of Pinocchio's u with the generated C's
 HERE = Path(__file__).resolve().parent
 PIN_SOURCE = HERE / "pinocchio_npid.cpp"
@@ -221,8 +229,10 @@ def pinocchio_binary() -> tuple[Path | None, str]:
 
 
 def _best_us(fn, number: int = PY_NUMBER) -> float:
-    """Best of REPEAT timeit runs of ``number`` calls, in microseconds per call."""
-    return min(timeit.repeat(fn, number=number, repeat=REPEAT)) / number * 1e6
+    """Best of REPEAT timeit runs of ``number`` calls, in microseconds of this process's CPU time
+    per call (``time.process_time``: on a shared machine the wall clock counts the other
+    processes' turns too; these calls run on one thread)."""
+    return min(timeit.repeat(fn, number=number, repeat=REPEAT, timer=time.process_time)) / number * 1e6
 
 
 def _python_module(d: Derivation, work: Path):
@@ -327,9 +337,10 @@ def run() -> Section:
     op_table = table(["kernel", "operations after CSE (double)"], [[k.name, k.operations] for k in ops])
 
     note = ("C: {:,} calls per repeat over 16 varying inputs, best of {} repeats (Pinocchio: {:,} calls). "
-            "Python, CasADi, lambdify: timeit, {} calls per repeat (CasADi 500), best of {}. A generated step "
-            "also checks finiteness and updates its integrator or observer; the CasADi, lambdify and "
-            "Pinocchio rows compute u alone.").format(ITERATIONS, REPEAT, PIN_ITERATIONS, PY_NUMBER, REPEAT)
+            "Python, CasADi, lambdify: timeit on the process's CPU time, {} calls per repeat (CasADi 500), "
+            "best of {}. A generated step also checks finiteness and updates its integrator or observer; "
+            "the CasADi, lambdify and Pinocchio rows compute u alone.").format(
+                ITERATIONS, REPEAT, PIN_ITERATIONS, PY_NUMBER, REPEAT)
     goals = [Goal(f"`{a}_npid_step` (double) under {NPID_GOAL_NS:g} ns", ns_d["npid_step"] < NPID_GOAL_NS,
                   ns(ns_d["npid_step"]))]
     if exe is not None:
@@ -340,6 +351,7 @@ def run() -> Section:
         goals.append(Goal(f"at least {PIN_SPEEDUP_GOAL:g}x faster than Pinocchio C++ (rnea) in the same run",
                           False, f"not built: {reason}"))
     worst = max(py.values())
-    goals.append(Goal(f"Python module under {PY_GOAL_US:g} us per step", worst < PY_GOAL_US,
-                      f"slowest step {us(worst)}"))
+    goals.append(Goal(f"Python module step within {PY_GOAL_RATIO:g}x the bare law u by sympy.lambdify in the same "
+                      "run", worst < PY_GOAL_RATIO * law["lambdify"],
+                      f"slowest step {us(worst)}: {worst / law['lambdify']:.1f}x"))
     return Section(TITLE, (timing, op_table, note, *notes), tuple(goals))

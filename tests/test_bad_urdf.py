@@ -118,16 +118,24 @@ CASES = [
     C("repair-negative-mass", good(b=link("b", f'<mass value="-1.0"/>{BOX}')), arm_keys(repair_inertia=True),
       ("urdf link 'b' <inertial><mass value>",), "repair_inertia repairs the inertia tensor, not a negative mass, "
       "got -1.0", cli=True),
+    C("mass-twice-on-chain", good(b=link("b", f'<mass value="1.0"/><mass value="2.0"/>{BOX}')), arm_keys(),
+      ("urdf link 'b' <inertial><mass>",), "expected one <mass>, got 2", cli=True),
+    C("origin-twice-on-chain", good(j2=joint("j2", "b", "c").replace("<origin", '<origin xyz="1 0 0"/><origin')),
+      arm_keys(), ("urdf joint 'j2' <origin>",), "expected one <origin>, got 2"),
     C("zero-axis", good(j1=joint("j1", "a", "b", extra='<axis xyz="0 0 0"/>')), arm_keys(),
       ("urdf joint 'j1' <axis xyz>",), "a non-zero axis"),
     C("nan-origin", good(j2=joint("j2", "b", "c").replace('xyz="0 0 0.1"', 'xyz="nan 0 0.1"')), arm_keys(),
       ("urdf joint 'j2' <origin xyz>",), "3 finite numbers, got 'nan 0 0.1'"),
     C("inf-mass", good(c=link("c", f'<mass value="inf"/>{BOX}')), arm_keys(), ("urdf link 'c' <inertial><mass value>",),
-      "1 finite number, got 'inf'"),
+      "a finite number, got 'inf'"),
     C("short-rpy", good(j1=joint("j1", "a", "b").replace('rpy="0 0 0"', 'rpy="0 0"')), arm_keys(),
       ("urdf joint 'j1' <origin rpy>",), "3 numbers separated by spaces, got '0 0'"),
     C("nan-inertia", good(b=link("b", '<mass value="1"/>' + BOX.replace('iyy="0.01"', 'iyy="NaN"'))), arm_keys(),
-      ("urdf link 'b' <inertial><inertia iyy>",), "1 finite number"),
+      ("urdf link 'b' <inertial><inertia iyy>",), "expected a finite number, got 'NaN'"),
+    C("word-mass", good(b=link("b", f'<mass value="abc"/>{BOX}')), arm_keys(), ("urdf link 'b' <inertial><mass value>",),
+      "expected a number, got 'abc'"),
+    C("base-is-tip", good(), arm_keys(base_link="b", tip_link="b"), ("arm.tip_link",),
+      "got 'b': base and tip are the same link"),
     C("no-inertia", robot('<link name="a"/><link name="b"/><link name="c"/>', joint("j1", "a", "b"),
                           joint("j2", "b", "c")), arm_keys(), ("urdf joint 'j1'", ), "J(theta) is singular", cli=True),
     C("unknown-locked", good(), arm_keys(locked={"nope": 0.1}), ("arm.locked.nope",), "got an unknown joint"),
@@ -198,3 +206,35 @@ def test_init_with_a_tip_below_a_floating_joint_exits_2_naming_it(tmp_path: Path
     assert "urdf joint 'j2' type: expected revolute, continuous, prismatic or fixed on the chain from 'a' to 'c' " \
            "(a floating joint is not supported" in proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.urdf"]
+
+
+def test_an_element_given_twice_off_the_chain_is_a_warning_naming_it(tmp_path: Path):
+    """Tester's twomass.urdf, off the chain: a side link on the base with two <mass> elements is read
+    leniently (the first, as urdf_parser_py does) and said on stderr by every command, not only noted."""
+    side = link("s", f'<mass value="0.1"/><mass value="0.3"/>{BOX}')
+    urdf = robot(*GOOD, side, joint("js", "a", "s", "fixed", ""))
+    path = write(Case("side", urdf, arm_keys(), (), ""), tmp_path)
+    arm = derive.load_arm(path)
+    assert [str(w) for w in arm.warnings] == [
+        "urdf link 's' <inertial><mass> (not on the chain, read leniently): expected one <mass>, got 2"]
+    assert not any("parser said" in note for note in arm.chain.notes)
+
+
+def test_a_parser_complaint_is_an_error_on_the_chain_and_a_warning_off_it():
+    """What urdf_parser_py says while reading (derive's cut-down leaves it nothing to say today, so
+    its messages are judged directly) names the link and element it concerns."""
+    from derive.model.fields import Reader
+    from derive.model.urdf_rules import judge_findings
+    from derive.model.urdf_xml import _parser_finding
+
+    said = "Unknown tag \"bar\" in /robot[@name='r']/link[@name='b']/inertial"
+    f = _parser_finding(said)
+    assert (f.kind, f.name, f.problem.field) == ("link", "b", "urdf link 'b' <inertial>")
+    r, notes = Reader(), []
+    assert judge_findings(r, [f], {"b"}, set(), set(), notes) == [] and [str(p) for p in r.problems] == [
+        f"urdf link 'b' <inertial>: expected a URDF that urdf_parser_py reads without a complaint, got it said: {said}"]
+    r = Reader()
+    warned = judge_findings(r, [f], {"c"}, set(), set(), notes)
+    assert r.problems == [] and [w.field for w in warned] == ["urdf link 'b' <inertial> (not on the chain, read leniently)"]
+    robot_level = _parser_finding("Material has neither a color nor texture.")
+    assert [w.field for w in judge_findings(Reader(), [robot_level], set(), set(), set(), [])] == ["arm.urdf"]

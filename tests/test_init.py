@@ -2,6 +2,7 @@
 overwrites, and picks the chain's ends or says which to choose."""
 from __future__ import annotations
 
+import re
 import shutil
 from fractions import Fraction
 from pathlib import Path
@@ -35,7 +36,11 @@ def test_init_writes_an_arm_file_that_loads(tmp_path, capsys):
     assert [p.value for p in arm.parameters if p.symbol.name.startswith("bv")] == [Fraction(1, 20)] * 2
     assert "position [0, 0] rad" in text                 # the URDF's limits, as comments
     assert "nondecreasing" not in text and "derive check certifies the observer on this box" in text
-    assert "derive generate" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "derive generate" in err
+    renamed = ("the URDF's robot name '2dof_planar' is not a name derive can use (a C identifier of lowercase ASCII "
+               "letters, digits and '_'): the arm is named 'arm_2dof_planar' (--name chooses another)")
+    assert f"derive: note: {renamed}" in err and f"\n#   {renamed}\n" in text
     # velocity="0" effort="0": no limits given, so the box is the stated default and u is not clipped
     assert [float(v) for v in arm.controller.max_joint_speed] == [2.0, 2.0]
     assert "joints 1, 2: assumption, 2 rad/s (0.5 m/s if prismatic), the URDF gives no velocity limit" in text
@@ -91,6 +96,46 @@ def test_init_bad_urdf_is_one_message_nothing_written(tmp_path, capsys):
     assert main(["init", str(_copy(tmp_path, "synthetic")), "--tip", "nowhere"]) == 2
     assert "--tip: expected the name of a link of the URDF" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.urdf", "synthetic.urdf"]
+
+
+def test_init_names_a_hostile_robot_name_it_replaced(tmp_path, capsys):
+    """Tester's hostile_name.urdf: a robot name that is a shell command, a path and C comment text, and a
+    newline that would end a TOML comment; init names the arm safely and says so on stderr and in the file.
+    A base link named with a quote and a backslash is written as an escaped TOML string (was a traceback)."""
+    text = (URDF / "double_pendulum.urdf").read_text(encoding="utf-8")
+    hostile = "../../evil; rm -rf ~ &amp; $(id) `x` &quot;&lt;b&gt;*/ #define&#10;[arm]"
+    urdf = tmp_path / "hostile.urdf"
+    text = text.replace('"base_link"', '"base&quot;\\link"')   # a link name that must be escaped in TOML
+    urdf.write_text(re.sub(r'<robot name="[^"]*"', f'<robot name="{hostile}"', text), encoding="utf-8")
+    assert main(["init", str(urdf)]) == 0
+    err = capsys.readouterr().err
+    written = (tmp_path / "hostile.toml").read_text(encoding="utf-8")
+    note = ("the URDF's robot name '../../evil; rm -rf ~ & $(id) `x` \"<b>*/ #define\\n[arm]' is not a name derive "
+            "can use (a C identifier of lowercase ASCII letters, digits and '_'): the arm is named "
+            "'evil_rm_rf_id_x_b_define_arm' (--name chooses another)")
+    assert f"derive: note: {note}" in err and f"\n#   {note}\n" in written
+    arm = derive.load_arm(tmp_path / "hostile.toml")
+    assert arm.name == "evil_rm_rf_id_x_b_define_arm" and 'base_link = "base\\"\\\\link"' in written
+    assert 'description = "evil_rm_rf_id_x_b_define_arm from hostile.urdf"\n' in written   # no '\\' in C comments
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["init", "r.urdf", "--out", "nodir/sub/x.toml"],
+     "derive: error: --out: expected a file in an existing folder, got nodir/sub/x.toml (no folder nodir/sub)"),
+    (["init", "nope.urdf"], "  - urdf: expected a readable URDF file (the path as given on the command line), "
+     "got string 'nope.urdf' (no such file: "),
+    (["init", "r.urdf", "--base", "link1", "--tip", "link1"], "  - --tip: expected a link below the base link "
+     "'link1' (the chain runs from base to tip), got 'link1': base and tip are the same link"),
+])
+def test_init_bad_arguments_are_one_message_naming_the_argument(tmp_path, monkeypatch, capsys, argv, message):
+    """Tester's cases: --out in a folder that does not exist, a URDF that does not exist (said as given on the
+    command line, not relative to an arm file), base and tip the same link: exit 2, nothing written."""
+    shutil.copy(URDF / "double_pendulum.urdf", tmp_path / "r.urdf")
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and err.count("derive: error:") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.urdf"]
 
 
 # -- issue 20: the starter file works as it is ---------------------------------------------------------------------
@@ -150,3 +195,33 @@ def test_init_then_simulate_on_light_wristed_vendor_arms(tmp_path, name, options
     arm, d, metrics = _first_run(tmp_path, name, *options)
     _tracks(metrics, rms=0.03, peak=0.2)
     assert arm.controller.max_joint_speed is not None and all(m.input_limit for m in arm.motors)
+
+
+def test_init_writes_the_rk4_substeps_a_light_joints_urdf_friction_needs(tmp_path, capsys):
+    """A URDF's <dynamics friction> on a light joint (the double pendulum's, 0.05 N m) is the plant's smooth
+    Coulomb law, whose slope 0.05 / 0.01 rad/s over the joint inertia is a fast mode: derive init writes the
+    substeps that keep RK4 stable there (derive.sim.plant.stiffest_mode), so simulate runs as written, and
+    without them simulate refuses (the trajectories would be wrong)."""
+    import re
+
+    from derive.sim.plant import stiffest_mode
+
+    urdf = _copy(tmp_path, "double_pendulum")
+    urdf.write_text(urdf.read_text().replace('<dynamics damping="0.05" />', '<dynamics damping="0.05" friction="0.05"/>'))
+    assert main(["init", str(urdf)]) == 0
+    path = urdf.with_suffix(".toml")
+    text = path.read_text()
+    substeps = int(re.search(r"^substeps = (\d+)", text, flags=re.M).group(1))
+    arm = derive.load_arm(path)
+    assert arm.simulation.coulomb_friction == (0.05, 0.05) and substeps > 4
+    from dataclasses import replace
+
+    d = derive.derive(arm)
+    assert stiffest_mode(d, arm.simulation)["stable"]                   # the smallest stable count
+    assert not stiffest_mode(d, replace(arm.simulation, substeps=substeps - 1))["stable"]
+    capsys.readouterr()
+    argv = ["simulate", str(path), "--controllers", "npid", "--duration", "0.5", "--out", str(tmp_path / "sim")]
+    assert main(argv) == 0 and "stiffest mode" not in capsys.readouterr().err
+    path.write_text(text.replace(f"substeps = {substeps}", "substeps = 4"))
+    assert main([*argv[:-1], str(tmp_path / "sim2")]) == 2
+    assert "derive: error: simulation.substeps of" in capsys.readouterr().err and not (tmp_path / "sim2").exists()

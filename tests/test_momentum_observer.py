@@ -22,7 +22,8 @@ from derive.codegen.files import generate_files
 from derive.codegen.forms import FORMS
 from derive.codegen.kernels import ParamsMode
 from derive.codegen.reference import Reference
-from derive.control.sampling import limits, summary_all
+from derive.control.limit_text import summary_all
+from derive.control.sampling import limits
 from derive.errors import SpecError
 from derive.model.spec import ARMS_DIR
 from derive.sim.compiled import build, run_loop

@@ -335,16 +335,26 @@ def test_unknown_plant_and_friction_mode_are_errors():
         select(load_arm(DATA / "double_pendulum.toml"), "mujoco", "some")
 
 
-def test_simulate_warns_when_rk4_is_unstable_in_the_stiffest_mode(tmp_path, capsys):
+def test_simulate_refuses_when_rk4_is_unstable_in_the_stiffest_mode_and_warns_under_force(tmp_path, capsys):
     """The condition of the stated tolerance, checked for the user: the double pendulum's light second
-    joint with 0.05 N m of smooth Coulomb friction at 4 RK4 steps per 2 ms sample."""
+    joint with 0.05 N m of smooth Coulomb friction at 4 RK4 steps per 2 ms sample. The trajectories
+    would be wrong: refused before simulating (exit 2, nothing written) unless --force."""
     arm = arm_copy(tmp_path, "double_pendulum", {"duration": 0.2, "coulomb_friction": [0.05, 0.05]})
     js = tmp_path / "m.json"
-    assert main(["simulate", str(arm), "--controllers", "npid", "--out", str(tmp_path / "o"), "--json", str(js)]) == 0
+    argv = ["simulate", str(arm), "--controllers", "npid", "--out", str(tmp_path / "o"), "--json", str(js)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("derive: error: simulation.substeps of double_pendulum = 4, derive's plant: the plant's "
+                          "stiffest mode") and "or pass --force" in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists() and not js.exists()
+    assert main([*argv, "--force"]) == 0
     err = capsys.readouterr().err
     stiff = json.loads(js.read_text())["plant"]["stiffest_mode"]
     assert not stiff["stable"] and stiff["substeps"] > 4
     assert "derive: warning: the plant's stiffest mode" in err and f"substeps to at least {stiff['substeps']}" in err
+    fixed = arm.read_text().replace("substeps = 4", f"substeps = {stiff['substeps']}")
+    arm.write_text(fixed)
+    assert main(argv[:-2]) == 0 and "stiffest mode" not in capsys.readouterr().err
 
 
 def test_geared_dc_motors_with_rotor_inertia_are_the_same_in_both_plants(tmp_path):

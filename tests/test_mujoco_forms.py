@@ -146,7 +146,7 @@ def test_urdf_friction_is_the_coulomb_default_and_counted_once_on_mujoco(tmp_pat
                            ("off", ["--plant", "mujoco", "--mujoco-friction", "off"])):
         js[label] = tmp_path / f"{label}.json"
         assert main(["simulate", str(tmp_path / "a" / "double_pendulum.toml"), "--controllers", "npid", "--duration",
-                     "0.2", "--out", str(tmp_path / label), "--json", str(js[label]), *options]) == 0
+                     "0.2", "--out", str(tmp_path / label), "--json", str(js[label]), "--force", *options]) == 0
         err = capsys.readouterr().err
         stable = json.loads(js[label].read_text())["plant"]["stiffest_mode"]["stable"]
         assert stable == (label == "file") and ("stiffest mode" in err) == (not stable), (label, err)

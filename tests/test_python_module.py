@@ -153,6 +153,29 @@ def test_real_numbers_of_any_container_give_the_same_u_and_nonfinite_keeps_its_c
     assert m.npid_step(*p, m.NpidState(), _input(m), 1)[0] == m.OK  # an int dt is a real number
 
 
+
+def test_the_fast_argument_check_refuses_what_the_named_checks_refuse(module):
+    """The steps check lists of N floats at once (issue 23): a nan or inf anywhere among the
+    inputs and the state is ENONFINITE with the state untouched, an inf and a -inf that cancel
+    in the check's sum included; finite entries whose sum overflows are still finite."""
+    m = module
+    p = _args(m)
+    nan, inf = float("nan"), float("inf")
+    for field, bad in (("theta", [nan, 0.2]), ("ddyd", [0.0, inf]), ("yd", [inf, -inf])):
+        for make, step in ((m.NpidState, m.npid_step), (m.DobcState, m.dobc_step), (m.MomState, m.mom_step)):
+            state = make()
+            before = {k: list(getattr(state, k)) for k in state.__slots__}
+            assert step(*p, state, _input(m, **{field: bad}), 1e-3) == (m.ENONFINITE, None, None)
+            assert {k: list(getattr(state, k)) for k in state.__slots__} == before
+    state = m.NpidState()
+    state.int_e = [0.0, nan]
+    assert m.npid_step(*p, state, _input(m), 1e-3) == (m.ENONFINITE, None, None)
+    assert m.npid_step(*p, m.NpidState(), _input(m), inf) == (m.EDT, None, None)
+    assert m.npid_step(*p, m.NpidState(), _input(m), -1e-3) == (m.EDT, None, None)
+    assert m._finite([1e308, 1e308], [1e308]) and not m._finite([inf, -inf]) and not m._finite([1.0], [nan])
+    code, u, _ = m.npid_step(*p, m.NpidState(), _input(m), 1e-3)
+    assert code == m.OK and type(u) is np.ndarray and u.shape == (2,)
+
 def test_runtime_parameters_are_checked_too(runtime):
     m = runtime
     params = m.Params()

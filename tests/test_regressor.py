@@ -186,3 +186,23 @@ def test_generate_regressor_is_on_request_and_listed_in_the_manifest(tmp_path):
         rel = path.relative_to(tmp_path / "plain" / "glasgow_2link")
         if path.is_file() and rel.name not in ("MANIFEST.json", "CMakeLists.txt"):
             assert (root / rel).read_bytes() == path.read_bytes(), rel
+
+
+def test_a_float_regressor_whose_reference_has_entries_below_floats_range_generates_and_passes(tmp_path):
+    """The UR5's 40-digit regressor reference has an entry of 1.7e-48 (0 but for its last digits): the float
+    self-test writes it 0 (derive.codegen.printing.expected_literal), where a constant of the code itself is
+    still refused; the float regressor's self-test passes."""
+    from derive.codegen.printing import c_literal, expected_literal
+    from derive.errors import DerivationError
+
+    assert expected_literal(1.7105694144590052e-48, "float") == "0.0f"
+    assert expected_literal(-2.5e-7, "float") == c_literal(-2.5e-7, "float")
+    with pytest.raises(DerivationError, match="underflows to 0 in float"):
+        c_literal(1.7105694144590052e-48, "float")
+    d = derive.derive(load_arm(UR5))
+    write_tree(tmp_path / "f", generate_files(d, b"", "float", ParamsMode.BAKED, regressor=True))
+    c, a = tmp_path / "f" / "c", d.arm.name
+    exe = compile_c("gcc", [c / f"{a}_regressor_selftest.c", c / f"{a}_regressor.c", *library_sources(c, a)],
+                    tmp_path / "selftest", ["-O2"])
+    out = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "16 passed, 0 failed", out.stdout

@@ -17,8 +17,8 @@ import sympy as sp
 import derive
 from derive.cli import main
 from derive.control.grid import configurations, spans
-from derive.control.sampling import _Z_ONLY, MARGIN, _loop, _radii, limits, operating_points, sample_limit, summary, \
-    summary_all
+from derive.control.limit_text import summary, summary_all
+from derive.control.sampling import _Z_ONLY, MARGIN, _loop, _radii, limits, operating_points, sample_limit
 from derive.errors import DeriveError
 from derive.sim.backends import Backend
 from derive.sim.simulate import Plant, run, true_plant
@@ -285,3 +285,68 @@ def _joints_of(path: Path) -> SimpleNamespace:
 def test_a_zero_width_range_counts_as_none():
     """double_pendulum.urdf writes <limit lower="0" upper="0">: the grid ranges over a turn."""
     assert spans(_joints_of(URDF_DIR / "double_pendulum.toml")) == [(-np.pi, np.pi, True)] * 2
+
+
+# -- a loop whose limit lies below DT_MIN (tester: round2 f1/f2, T2 = 1e-20) ------------------------------------------
+F1 = """[arm]
+name = "f1_float_inf"
+
+[[link]]
+length = 0.3
+mass = 0.5
+
+[[motor]]
+torque_constant = 0.05
+voltage_constant = 0.05
+resistance = 2.0
+
+[controller]
+T1 = 0.0
+T2 = 1e-20
+w = [1.0]
+"""
+
+
+def test_a_stable_loop_too_fast_for_dt_min_has_a_limit_below_it_that_reads_in_every_sentence(tmp_path):
+    """f1: T1 = 0, T2 = 1e-20 give K2 = 5 / (2 T2) (eq. 16), so the continuous MPC loop's poles have real part
+    -K2 / 2 = -1.25e20 1/s (stable; derive check proves it Hurwitz), and every sampled form is unstable already
+    at DT_MIN = 1e-7 s. Its limit is "below 1e-7 s", never "none (... unstable as dt -> 0 ...)", and the
+    sentences embedding it read as sentences."""
+    from derive.control.limit_text import too_slow
+    from derive.control.sampling import DT_MIN, _continuous_rate
+
+    path = tmp_path / "f1.toml"
+    path.write_text(F1, encoding="utf-8")
+    d = derive.derive(derive.load_arm(path))
+    loop = _loop(d)
+    pts = operating_points(d)
+    L = loop.linearise("mpc", np.array([q for q, _ in pts]), np.array([dq for _, dq in pts]))
+    assert np.allclose(_continuous_rate(loop, "mpc", L), -1.25e20, rtol=1e-6)
+    for observer in ("explicit", "implicit"):
+        lim = limits(d, observer)
+        assert all(x.below and x.limit == 0 and x.raw == DT_MIN for x in lim.values()), lim
+    for text in (summary(d), summary_all(d), *too_slow(d, 1e-3), *too_slow(d, 1e-3, observer="implicit")):
+        assert "none" not in text and "unstable as dt -> 0" not in text, text
+    assert "MPC below 1e-7 s, DOBC below 1e-7 s, NPID below 1e-7 s, MOM below 1e-7 s" in summary(d)
+    dobc = next(t for t in too_slow(d, 1e-3) if "DOBC" in t)
+    assert dobc == ("sample_time = 1 ms is above the DOBC limit, which is below 1e-7 s (the sampled loop is unstable "
+                    "at 1e-7 s at some operating point, although the continuous loop is stable at every one: its "
+                    "fastest mode needs a shorter sample time); with --observer implicit the DOBC limit is below "
+                    "1e-7 s, which does not allow it either")
+
+
+def test_the_continuous_loop_is_stable_on_an_arm_with_a_sampling_limit(paper):
+    """The continuous rate is the dt -> 0 limit of the sampled loop: negative at every point (all forms, MOM
+    in the residual's coordinates) where the sampled loop has a positive limit; a loop unstable as dt -> 0
+    (limit 0, not below) is said to be so, not given a limit."""
+    from derive.control.limit_text import _beyond
+    from derive.control.sampling import SampleLimit, _continuous_rate
+
+    loop, pts = _loop(paper), operating_points(paper)
+    Q, DQ = np.array([q for q, _ in pts]), np.array([dq for _, dq in pts])
+    for form in ("mpc", "dobc", "npid", "mom"):
+        assert (_continuous_rate(loop, form, loop.linearise(form, Q, DQ)) < 0).all(), form
+    unstable = SampleLimit("dobc", "explicit", 0.0, 0.0, 8, None)
+    assert _beyond("DOBC", unstable, "") == (
+        "is not a sampling question: the DOBC loop is unstable at every sample time (its linearisation is unstable "
+        "as dt -> 0 at some operating point: not a sampling limit)")

@@ -241,3 +241,25 @@ def test_committed_simulation_outputs_are_regenerated_byte_for_byte(paper_runs):
     traces = list(runs.values())
     assert link_figure(traces, 0) == (sim / "link1.png").read_bytes()
     assert error_figure(traces) == (sim / "tracking_error.png").read_bytes()
+
+
+def test_a_trajectory_that_leaves_a_stated_joint_range_is_named_with_where_and_when():
+    """Neither plant applies joint limits: a run that leaves a joint's stated range is not the arm's, and
+    simulate says so (joint, range, the farthest value and its time); a run inside every range says nothing."""
+    from derive.cli.simulate import range_warnings
+    from derive.sim.simulate import Trace
+
+    d = derive.derive(derive.load_arm(Path(__file__).parent / "data" / "urdf" / "synthetic.toml"))
+    joints = d.dynamics.chain.joints
+    inside = np.array([[(float(j.limits.lower) + float(j.limits.upper)) / 2 for j in joints]] * 3)
+    t = np.array([0.0, 0.002, 0.004])
+
+    def trace(theta):
+        return Trace("npid", t, theta, np.zeros_like(theta), theta, np.zeros_like(theta), None,
+                     np.zeros(theta.shape, dtype=bool))
+    assert range_warnings(d, [trace(inside)]) == []
+    out = inside.copy()
+    out[1, 3] = float(joints[3].limits.upper) + 0.01      # the slide 1 cm beyond its travel at t = 2 ms
+    text, = range_warnings(d, [trace(out)])
+    assert text.startswith(f"npid: joint {joints[3].name!r} leaves its range [0, 0.12] m (reaches 0.13 m at "
+                           "t = 0.002 s)"), text

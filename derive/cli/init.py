@@ -34,6 +34,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from derive.errors import DeriveError, SpecError
+from derive.model.simspec import SimSettings
 
 T2_DEFAULT = "0.2"
 DEFAULT_SPEED = 2.0          # rad/s: the speed box of a joint whose URDF gives no velocity limit (assumption)
@@ -55,19 +56,26 @@ def add_arguments(parser) -> None:
                         "with their links into the arm file (default: refuse them)")
 
 
-def _name(robot: str, given: str | None) -> str:
+def _name(robot: str, given: str | None, what: str = "the URDF's robot name") -> tuple[str, str | None]:
+    """The arm's name: ``given`` (--name, checked), else ``robot`` (``what``: where it is from) made a
+    safe C identifier (derive.model.names); with a note giving both names when that changed it."""
     from derive.model.names import name_problem
 
     if given is not None:
         if (why := name_problem(given)) is not None:
             raise DeriveError(f"--name: expected {why}")
-        return given
+        return given, None
     name = re.sub(r"[^a-z0-9_]+", "_", robot.lower()).strip("_")
     name = re.sub(r"_+", "_", name)
     if not name or name[0].isdigit():
         name = f"arm_{name}".rstrip("_")
-    return name if name_problem(name) is None else f"{name[:26]}_arm" if name_problem(f"{name[:26]}_arm") is None \
+    name = name if name_problem(name) is None else f"{name[:26]}_arm" if name_problem(f"{name[:26]}_arm") is None \
         else "my_arm"
+    if name == robot:
+        return name, None
+    shown = repr(robot) if len(robot) <= 100 else f"{robot[:100]!r}... ({len(robot)} characters)"
+    return name, (f"{what} {shown} is not a name derive can use (a C identifier of lowercase "
+                  f"ASCII letters, digits and '_'): the arm is named {name!r} (--name chooses another)")
 
 
 def _ends(robot, base: str | None, tip: str | None) -> tuple[str, str]:
@@ -136,12 +144,35 @@ def _g(x: float) -> str:
     return f"{x:.{DIGITS}g}"
 
 
+def _string(text: str) -> str:
+    """``text`` as a TOML basic string: a link or file name with a quote, a backslash or a control
+    character (U+0000-U+001F, U+007F: TOML's backslash-u escape, four hex digits) stays one string."""
+    def escape(c: str) -> str:
+        if c in '"\\':
+            return "\\" + c
+        return f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c
+    return '"' + "".join(escape(c) for c in text) + '"'
+
+
+def _description(name: str, urdf_name: str, base: str, tip: str) -> str:
+    """The arm's description: its name, the URDF file's and the chain's ends, without the names
+    that could not stand in a generated C comment or docstring (derive.model.fields.text_problem)."""
+    from derive.model.fields import text_problem
+
+    for text in (f"{name} from {urdf_name}, base {base}, tip {tip}", f"{name} from {urdf_name}"):
+        if text_problem(text) is None:
+            return text
+    return f"{name} from a URDF"
+
+
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
-                 repaired: tuple[str, ...] = (), gain=None) -> str:
+                 repaired: tuple[str, ...] = (), gain=None, notes: tuple[str, ...] = (),
+                 substeps: int | None = None) -> str:
     """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
     links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
     derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
-    placeholder, for reading the chain back)."""
+    placeholder, for reading the chain back). ``notes``: init's own notes (the name's), written
+    before the chain's."""
     n = chain.n
     box, assumed = speed_box(chain)
     lines = [
@@ -149,21 +180,21 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "# assumptions, marked as such: check them against your hardware. Then: derive generate <this file>",
         "",
         "[arm]",
-        f'name = "{name}"',
-        f'description = "{name} from {urdf_name}, base {base}, tip {tip}"',
-        f'urdf = "{urdf_rel}"',
-        f'base_link = "{base}"',
-        f'tip_link = "{tip}"',
+        f"name = {_string(name)}",
+        f"description = {_string(_description(name, urdf_name, base, tip))}",
+        f"urdf = {_string(urdf_rel)}",
+        f"base_link = {_string(base)}",
+        f"tip_link = {_string(tip)}",
         "gravity = 9.81                  # m/s^2, assumption: Earth's",
         "gravity_direction = [0, 0, -1]  # assumption: the base link's z axis points up",
         'actuation = "torque"            # u is the motor torque [N m]: B = diag(gear_ratio), no back-EMF',
         "# locked = { joint_name = 0.0 } # hold joints (rad or m); joints off the chain are held at 0",
-    ] + ([f"repair_inertia = [{', '.join(chr(34) + x + chr(34) for x in repaired)}]  # their inertias are not "
+    ] + ([f"repair_inertia = [{', '.join(map(_string, repaired))}]  # their inertias are not "
           "physical: moved to the nearest physical ones (see the notes below)"] if repaired else []) + [
         "",
         "# What reading the URDF did:",
     ]
-    lines += [f"#   {note}" for note in chain.notes] or ["#   nothing to note"]
+    lines += [f"#   {note}" for note in (*notes, *chain.notes)] or ["#   nothing to note"]
     for i, (joint, bv) in enumerate(zip(chain.joints, damping), 1):
         effort = joint.limits.effort
         unit = "N m" if joint.type.rotates else "N"
@@ -220,9 +251,14 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         f"# the momentum observer's below 2 / K ({gain.momentum_limit * 1e3:.3g} ms); derive check and derive show "
         "print each",
         "# form's limit over the speed box (with --observer implicit the DOBC and NPID limits are far larger).",
-        "",
     ]
-    return "\n".join(lines)
+    if substeps is not None:
+        lines += [
+            f"substeps = {substeps}" + " " * max(1, 20 - len(str(substeps)))
+            + "# RK4 steps per sample: the plant's stiffest mode at the initial pose (the joints' friction",
+            "# as a smooth Coulomb law, its slope over the joint inertia) needs h lambda <= 2.785",
+        ]
+    return "\n".join(lines + [""])
 
 
 def choose_gain(draft: str, out: Path, chain):
@@ -246,7 +282,23 @@ def choose_gain(draft: str, out: Path, chain):
         raise DeriveError(f"joint {names}: expected a prismatic joint with <limit lower upper> (the observer "
                           "certificate and the sample-time analysis range over its travel), got none")
     box, _ = speed_box(chain)
-    return starter_gain(model, box)
+    return starter_gain(model, box), dyn
+
+
+def rk4_substeps(text: str, out: Path, dyn) -> int:
+    """The RK4 steps per sample the simulation of the arm file ``text`` needs at its nominal
+    parameters (derive.sim.plant.decay_mode: the stiffest mode at the initial pose, a light
+    joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
+    import tomllib
+
+    import sympy as sp
+
+    from derive.model.spec import arm_from_dict
+    from derive.sim.plant import decay_mode
+
+    s = arm_from_dict(tomllib.loads(text), str(out), base_dir=out.resolve().parent).simulation
+    values = {sym: sp.Float(v, 17) for sym, v in dyn.values}
+    return decay_mode(dyn, values, s, s.viscous_friction, s.coulomb_friction)["substeps"]
 
 
 def _write_new(path: Path, text: str) -> None:
@@ -286,8 +338,11 @@ def run(args) -> int:
     from derive.model.urdf_xml import parse_safely
 
     urdf = Path(args.urdf)
+    if args.out and not Path(args.out).parent.is_dir():   # before reading anything
+        raise DeriveError(f"--out: expected a file in an existing folder, got {args.out} "
+                          f"(no folder {Path(args.out).parent})")
     r = Reader()
-    doc = parse_safely(r, str(urdf.resolve()), Path("/"))
+    doc = parse_safely(r, args.urdf, Path.cwd(), "the path as given on the command line")
     robot = None if doc is None else doc.robot
     if robot is None:
         raise SpecError(str(urdf), [type(p)(p.field.replace("arm.urdf", "urdf"), p.expected, p.given)
@@ -310,13 +365,21 @@ def run(args) -> int:
     if out.exists() or out.is_symlink():   # before the minutes the derivation may take
         _write_new(out, "")
     rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
-    name = _name(robot.name or urdf.stem, args.name)
-    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired)
-    gain = choose_gain(draft, out, found.chain)
-    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain)
+    name, renamed = _name(robot.name or urdf.stem, args.name,
+                          "the URDF's robot name" if robot.name else "the URDF file's name")
+    notes = (renamed,) if renamed else ()
+    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
+    gain, dyn = choose_gain(draft, out, found.chain)
+    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
+    substeps = rk4_substeps(text, out, dyn)
+    if substeps > SimSettings.substeps:   # the default the file leaves unsaid
+        text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes,
+                            substeps)
     _write_new(out, text)
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)
+    for note in notes:
+        print(f"derive: note: {note}", file=sys.stderr)
     for note in found.chain.notes:
         if "inertia repaired" in note:
             print(f"derive: note: {note}", file=sys.stderr)

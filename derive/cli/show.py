@@ -328,7 +328,7 @@ def run(args) -> int:
     if not args.latex:
         import textwrap
 
-        from derive.control.sampling import summary_all
+        from derive.control.limit_text import summary_all
 
         sys.stdout.write("\n" + textwrap.fill(f"Sample time: {summary_all(d)}", 100, subsequent_indent="  ") + "\n")
     return 0

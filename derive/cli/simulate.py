@@ -37,7 +37,8 @@ def add_arguments(parser) -> None:
                              "added to it (as [simulation] reference_start = \"measured\"): e(0) = 0, so the "
                              "initial estimate dhat(0) is 0, a smooth start")
     parser.add_argument("--force", action="store_true",
-                        help="simulate even when the sample time is above a form's limit (derive check prints it)")
+                        help="simulate even when the sample time is above a form's limit (derive check prints it) or "
+                             "the plant's RK4 step is unstable in its stiffest mode")
     parser.add_argument("--voltage-limits", "--input-limits", dest="voltage_limits", default=None,
                         metavar="U1,U2,...",
                         help="override the motors' input limits (0 = none), for saturation studies: a voltage "
@@ -155,7 +156,8 @@ def plant_markdown(plant: dict) -> list[str]:
               f"2.785{'' if stiff['stable'] else ': UNSTABLE, raise substeps to ' + str(stiff['substeps'])})")
     if plant["name"] == "derive":
         return [f"Plant: derive's, {plant['model']}; {h}.", ""]
-    joints = "the file's" if plant["friction"] == "file" else "derive's, no friction loss or limits"
+    joints = ("the file's (joint limits only an MJCF's: a URDF's <limit lower upper> are not applied, as derive's "
+              "plant has none)" if plant["friction"] == "file" else "derive's, no friction loss or limits")
     lines = [f"Plant: {plant['engine']} integrating `{plant['model']}` ({plant['kind'].upper()}); {h}; joint "
              f"damping, friction loss and limits: {joints}; gravity {plant['gravity']} m/s^2 in MuJoCo's world.", "",
              "| derive joint | MuJoCo joint | actuator | armature [kg m^2] | damping | friction loss |",
@@ -199,7 +201,8 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     A controller whose run fails keeps its samples up to the failure (plotted and
     marked), gets no metrics and a ``failed`` entry; the others are unaffected.
     ``warn(text)``, when given, receives the start's warnings before anything runs
-    (an initial estimate dhat(0) above an input limit: derive.sim.start). ``cache``: the entry of
+    (an initial estimate dhat(0) above an input limit: derive.sim.start) and, after the runs,
+    each joint that left the range its URDF or arm file states (range_warnings). ``cache``: the entry of
     derive.sim.cache that holds the derivation, the compiled loop and the figures (None: none)."""
     from dataclasses import replace
 
@@ -218,6 +221,9 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
             warn(text)
     runs = _runs(d, sources, names, backend_kind, settings, observer, progress, cache)
     traces = runs[0]
+    if warn is not None:
+        for text in range_warnings(d, traces):
+            warn(text)
     unit, word = units_text(arm.input_units), input_word(arm.input_units)
     results = metrics_results(traces, settings, unit, described(main, d, settings))
     files = {f"link{i + 1}.png": cache.figure(("link", i, arm.input_units[i]), traces,
@@ -232,6 +238,29 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
     files["metrics.md"] = metrics_markdown(arm.name, results["controllers"], backend_kind, unit, word,
                                            plant=results["plant"], comparison=results.get("comparison")).encode()
     return files, results
+
+
+def range_warnings(d, traces) -> list[str]:
+    """One sentence per controller and joint whose trajectory left the joint's stated range
+    [lower, upper] (rad or m): neither plant applies joint limits (derive's has none; MuJoCo's
+    URDF is read without them, derive.sim.mujoco.source), so such a run is not the arm's."""
+    import numpy as np
+
+    out = []
+    for trace in traces:
+        for i, joint in enumerate(d.dynamics.chain.joints):
+            lo, hi = joint.limits.lower, joint.limits.upper
+            if lo is None or hi is None or lo >= hi or not len(trace.theta):
+                continue
+            x = trace.theta[:, i]
+            k = int(np.argmax(np.maximum(float(lo) - x, x - float(hi))))
+            if x[k] < float(lo) - 1e-9 or x[k] > float(hi) + 1e-9:
+                unit = "rad" if joint.type.rotates else "m"
+                out.append(f"{trace.name}: joint {joint.name!r} leaves its range [{float(lo):g}, {float(hi):g}] "
+                           f"{unit} (reaches {x[k]:.4g} {unit} at t = {trace.t[k]:g} s); the plant applies no "
+                           "joint limits, so this run is not the arm's: lower the reference's amplitude or the "
+                           "disturbance, or start elsewhere ([simulation] initial_theta)")
+    return out
 
 
 def _plots():
@@ -360,7 +389,7 @@ def run(args) -> int:
     cache = SimCache.open(arm, {"observer": args.observer, "plants": used, "friction": args.mujoco_friction},
                           enabled=not args.no_cache and args.backend == "compiled")
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
-        from derive.control.sampling import too_slow
+        from derive.control.limit_text import too_slow
         from derive.sim.simulate import VARIANTS as forms
 
         used_forms = tuple(sorted({forms[c][0] for c in names}))
@@ -371,6 +400,15 @@ def run(args) -> int:
             raise DeriveError(f"simulation.sample_time of {arm.name}: " + "; ".join(slow)
                               + ": the controller would diverge; lower sample_time below the limits named, use "
                               "--observer implicit where it allows the sample time, or pass --force")
+        from derive.sim.plant import stiffest_mode
+
+        for name in used:   # RK4 unstable in the plant's stiffest mode: trajectories known to be wrong
+            source = plants.select(arm, name, args.mujoco_friction)
+            d = cached_derivation(arm, cache)
+            stiff = stiffest_mode(d, arm.simulation, source.coulomb(d, arm.simulation))
+            if not stiff["stable"]:
+                raise DeriveError(f"simulation.substeps of {arm.name} = {arm.simulation.substeps}, {name}'s plant: "
+                                  f"{stiffness_words(stiff, arm.simulation)}, or pass --force")
     start = time.perf_counter()
     files, results = simulate_files(arm, names, args.backend, progress=True, duration=args.duration,
                                     observer=args.observer, plant=args.plant, friction=args.mujoco_friction,

@@ -85,14 +85,16 @@ class ApiBounds:
             self._entries[name] = _Entry(t, tuple(v for o in outs for v in o), tuple(ports["z"]),
                                          tuple(len(o) for o in outs))
         t, ports = start()   # mom_estimate: the second output of the mom kernel
-        (_, dhat) = call(t, "mom", ports)
+        dhat = call(t, "mom", ports)[1]
         self._entries["mom_dhat"] = _Entry(t, tuple(dhat), tuple(ports["z"]), (n,))
         for form, law, step in (("dobc", "dobc", "observer"), ("mom", "mom", "mom_next")):
             t, ports = start()   # the law, the limits (a select), then the state's step fed the applied u
-            u = call(t, law, ports)[0]
+            outs = call(t, law, ports)   # the law's further outputs feed the step by port name
+            u = outs[0]
             keep, clip = t.leaf("keep", n, kind=None), t.leaf("clip", n, kind=CONST)
             applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
-            (s_next,) = call(t, step, {**ports, "u": applied})
+            named = {p.name: o for p, o in zip(self._specs[law].outputs[1:], outs[1:])}
+            (s_next,) = call(t, step, {**ports, **named, "u_law": u, "u": applied})
             self._entries[form] = _Entry(t, (*u, *s_next), tuple(ports["z"]), (n, n))
 
     def operations(self, name: str) -> int:

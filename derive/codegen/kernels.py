@@ -18,6 +18,7 @@ from enum import Enum
 
 import sympy as sp
 
+from derive.codegen.ldl import factor_symbols, ldl_factor, ldl_solve
 from derive.dynamics.dag import Memo, free_symbols
 from derive.errors import CoverageError
 from derive.control.pipeline import Derivation
@@ -97,8 +98,9 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     """The kernels of an arm's controller (shapes for n joints, row-major).
 
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
-    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22);
-    observer(theta, theta', z, u, dt) -> z_next (eq. 21); dobc_init(x) -> z(0)
+    npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22), with the law's
+    acceleration a and the LDL^T factor of J; observer(z, a, ldl, u_law, u, dt) -> z_next (eq. 21,
+    fed the applied u: :func:`explicit_observer_specs`); dobc_init(x) -> z(0)
     from the derived dhat(0) (implicit: dobc_init(x, dt) -> z(0), u0); dhat(theta', z) -> the estimate dhat (eq. 22);
     x = (theta, theta', yd, yd', yd''), p = parameters
     (runtime). The discretisation is part of the maths: forward Euler,
@@ -106,7 +108,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     (an integrator held at a voltage limit keeps int_e).
 
     ``observer = "implicit"`` (derive.control.sampling's module docstring): the
-    observer kernel takes the backward-Euler step of eq. (21) over the interval
+    observer kernel (theta, theta', z, u, dt) takes the backward-Euler step of eq. (21) over the interval
     that just ended, (J + dt W) y = G - B u - W theta' - z with the new
     measurement and the voltage u held over the interval, z_next = z + dt W y,
     and the glue applies the DOBC law to z_next. The NPID law matched to it is
@@ -142,10 +144,8 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     npid = d.npid
     dhat0 = law(npid.dhat0)
     W, B = d.observer.W, d.dynamics.B
-    y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
     J = value(d.dynamics.J)
-    A = J + dt_sym * value(W) if implicit else J      # backward Euler: J + dt W
-    solve = LinearSolve(y, A, value(d.observer.J_solve_rhs))
+    A = J + dt_sym * value(W)      # backward Euler: J + dt W
     z0 = value(B) * dhat0 - value(W) * sp.Matrix(s.dtheta)
     if implicit:
         xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
@@ -167,14 +167,11 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
         init_inputs = (*x[:4], dt, *params)
         init_doc = ("Observer state giving the sampled initial estimate dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)), "
                     "W_dt = W (J + dt W)^-1 J (eq. 30 for the backward-Euler step, not 31)")
-        observer_doc = ("Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
-                        "(J + dt W) y = G - B u - W theta' - z solved numerically")
     else:
         npid_u, npid_solves, npid_doc = law(npid.u_npid_rnea), (), "u = P e + D e' + I int e + N, eq. 34"
         z0_outputs = (Port("z0", _flat(z0), "z(0) = B dhat(0) - W theta'(0)"),)
         init_solves, init_inputs = (), (*x[:4], *params)
         init_doc = "Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31)"
-        observer_doc = "Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically"
     return (
         KernelSpec("gains", (theta, *params), (
             # not P, D, I: C99's <complex.h> defines I (generated names are never one capital)
@@ -188,13 +185,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
             Port("u", _flat(npid_u), npid_doc),
             Port("int_next", _flat(sp.Matrix(s.int_e) + dt_sym * e), "int_e + dt e, e = yd - C theta (eq. 20)")),
             "Nonlinear PID predictive control law (eq. 34-38) and its integrator step", npid_solves),
-        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(law(npid.u_dobc_rnea)), "u* - dhat, eq. 27"),),
-                   "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
-        KernelSpec("observer", (theta, dtheta, z, Port("u", s.u, "applied voltages"), dt, *params), (
-            Port("z_next", _flat(sp.Matrix(s.z) + dt_sym * value(W) * sp.Matrix(y)),
-                 "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21" if implicit
-                 else "z + dt z', z' = W J^-1 (G - B u - p - z), eq. 21"),),
-            observer_doc, (solve,)),
+        *(observer_specs(d, mode, x, z, dt, params) if implicit else explicit_observer_specs(d, mode, x, z, dt, params)),
         KernelSpec("dobc_init", init_inputs, z0_outputs, init_doc, init_solves),
         KernelSpec("dhat", (dtheta, z, *params), (
             Port("dhat", _flat(value(d.observer.dhat)), "dhat = B^-1 (z + W theta'), eq. 22"),),
@@ -203,29 +194,106 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     )
 
 
+def observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port, dt: Port,
+                   params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
+    """The DOBC's law and backward-Euler observer step (``--observer implicit``, kernel_specs):
+    dobc(x, z) -> u; observer(theta, theta', z, u, dt) -> z + dt W y, (J + dt W) y = G - B u - W theta' - z
+    (J + dt W is not symmetric for a full W: a general solve)."""
+    value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
+    s, n, dts = d.dynamics.sym, d.n, dt.items[0]
+    W = value(d.observer.W)
+    y = tuple(sp.Symbol(f"jsolve{i + 1}", real=True) for i in range(n))
+    solve = LinearSolve(y, value(d.dynamics.J) + dts * W, value(d.observer.J_solve_rhs))
+    return (
+        KernelSpec("dobc", (*x, z, *params), (Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))),
+                                                   "u* - dhat, eq. 27"),),
+                   "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27)"),
+        KernelSpec("observer", (x[0], x[1], z, Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dts * W * sp.Matrix(y)),
+                 "z + dt W y, (J + dt W) y = G - B u - p - z, eq. 21"),),
+            "Disturbance observer step (eq. 21, 24), backward Euler over the interval that ended: "
+            "(J + dt W) y = G - B u - W theta' - z solved numerically", (solve,)),
+    )
+
+
+def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port, dt: Port,
+                            params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
+    """The DOBC's law and forward-Euler observer step: dobc(x, z) -> u, a, ldl;
+    observer(z, a, ldl, u_law, u, dt) -> z_next.
+
+    The observer step z + dt W y, J y = G - B u - W theta' - z (eq. 21, 24), fed the applied u,
+    is computed from the law's quantities: under the composite law u_law = B^-1 (J a + G) - B^-1
+    (z + W theta') (eq. 22, 27, a = C^-1 (K1 e + K2 e' + yd'')) the right-hand side is
+    G - B u_law - W theta' - z = -J a (the step behind eq. 28-29), so
+
+        y = -a - J^-1 B (u - u_law),
+
+    the second term the voltage limit's share (zero while no joint is clipped). J^-1 is applied
+    by the LDL^T factor of the symmetric positive definite J (derive.codegen.ldl), which the law's
+    kernel computes from theta and passes on: no general solve, and theta's sines and cosines
+    once per step."""
+    value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
+    s, n, dts = d.dynamics.sym, d.n, dt.items[0]
+    W, B = value(d.observer.W), value(d.dynamics.B)
+    a = tuple(sp.Symbol(f"accel{i + 1}", real=True) for i in range(n))
+    law = tuple(sp.Symbol(f"ulaw{i + 1}", real=True) for i in range(n))
+    factor = factor_symbols(n)
+    y = -sp.Matrix(a) - ldl_solve(factor, B * (sp.Matrix(s.u) - sp.Matrix(law)))
+    return (
+        KernelSpec("dobc", (*x, z, *params), (
+            Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))), "u* - dhat, eq. 27"),
+            Port("a", _flat(d.measured(value(d.mpc.a))), "a = C^-1 (K1 e + K2 e' + yd''): B u* = J a + G"),
+            Port("ldl", ldl_factor(value(d.dynamics.J)), "J = L D L^T: -L's lower entries by rows, -D^-1")),
+            "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a "
+            "and the LDL^T factor of J(theta) for the observer step"),
+        KernelSpec("observer", (z, Port("a", a, "the dobc kernel's a"), Port("ldl", factor, "the dobc kernel's ldl"),
+                                Port("u_law", law, "the dobc kernel's u (before the limits)"),
+                                Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("z_next", _flat(sp.Matrix(s.z) + dts * W * y),
+                 "z + dt z', z' = W J^-1 (G - B u - p - z) = W (-a - J^-1 B (u - u_law)), eq. 21"),),
+            "Disturbance observer step (eq. 21, 24), forward Euler with the applied u: "
+            "J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J"),
+    )
+
+
 def momentum_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], dt: Port,
                    params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
-    """The generalized-momentum observer's kernels (derive.control.momentum), form mom:
-    mom(x, m) -> u = u* - B^-1 r, r = K (J theta' - m) (eq. 27 with its estimate), and that
-    estimate dhat = B^-1 r (one kernel for mom_step and mom_estimate: the M4F's 4 KB of flash);
-    mom_next(theta, theta', m, u, dt) -> m + dt (B u + C^T theta' - g - F theta' + r) (forward
-    Euler of m'); mom_init(theta, theta') -> m(0) = J theta' (so r(0) = 0)."""
+    """The generalized-momentum observer's kernels (derive.control.momentum), form mom,
+    J theta' and C^T theta' by one recursion (derive.dynamics.momentum), neither J nor C formed:
+    mom(x, m) -> u = u* - B^-1 r, r = K (J theta' - m) (eq. 27 with its estimate), that
+    estimate dhat = B^-1 r, and m_rate = B u* + C^T theta' - g - F theta', the rate
+    m' = B u + C^T theta' - g - F theta' + r at the law's u (B u + r = B u*); one kernel for
+    mom_step and mom_estimate (the M4F's 4 KB of flash);
+    mom_next(m, m_rate, u_law, u, dt) -> m + dt (m_rate + B (u - u_law)), forward Euler with the
+    applied u (B (u - u_law): the voltage limit's share); mom_init(theta, theta') -> m(0) = J theta'
+    (so r(0) = 0)."""
     mom = d.momentum
     value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
     s = d.dynamics.sym
+    n = d.n
     theta, dtheta = x[0], x[1]
     m = Port("m", mom.m, "momentum observer state: the integral m of derive.control.momentum")
+    B = value(d.dynamics.B)
+    u_star = d.measured(value(d.mpc.u_star_rnea))
+    rate = tuple(sp.Symbol(f"mrate{i + 1}", real=True) for i in range(n))
+    law = tuple(sp.Symbol(f"ulaw{i + 1}", real=True) for i in range(n))
+    step = sp.Matrix(mom.m) + dt.items[0] * (sp.Matrix(rate) + B * (sp.Matrix(s.u) - sp.Matrix(law)))
     return (
         KernelSpec("mom", (*x, m, *params), (
-            Port("u", _flat(d.measured(value(d.mpc.u_star_rnea)) - value(mom.dhat)),
+            Port("u", _flat(u_star - value(mom.dhat_rnea)),
                  "u* - B^-1 r, r = K (J theta' - m): eq. 27 with the momentum estimate"),
-            Port("dhat", _flat(value(mom.dhat)), "dhat = B^-1 K (J theta' - m)")),
-            "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat"),
-        KernelSpec("mom_next", (theta, dtheta, m, Port("u", s.u, "applied voltages"), dt, *params), (
-            Port("m_next", _flat(sp.Matrix(mom.m) + dt.items[0] * value(mom.m_rate)),
-                 "m + dt (B u + C^T theta' - g - F theta' + K (J theta' - m))"),),
-            "Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r"),
+            Port("dhat", _flat(value(mom.dhat_rnea)), "dhat = B^-1 K (J theta' - m)"),
+            Port("m_rate", _flat(B * u_star + value(mom.beta_rnea)),
+                 "B u* + C^T theta' - g - F theta': m' at the law's u")),
+            "Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, "
+            "and the observer's rate m' at that u"),
+        KernelSpec("mom_next", (m, Port("m_rate", rate, "the mom kernel's m_rate"),
+                                Port("u_law", law, "the mom kernel's u (before the limits)"),
+                                Port("u", s.u, "applied voltages"), dt, *params), (
+            Port("m_next", _flat(step),
+                 "m + dt (m_rate + B (u - u_law)) = m + dt (B u + C^T theta' - g - F theta' + K (J theta' - m))"),),
+            "Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r"),
         KernelSpec("mom_init", (theta, dtheta, *params), (
-            Port("m0", _flat(value(mom.p)), "m(0) = J(theta0) theta0': r(0) = 0"),),
+            Port("m0", _flat(value(mom.p_rnea)), "m(0) = J(theta0) theta0': r(0) = 0"),),
             "Momentum observer state at the first sample: the generalized momentum J theta'"),
     )

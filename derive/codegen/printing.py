@@ -5,6 +5,13 @@ module only spells each instruction in the target language, with the chosen
 real type: for float, every literal carries an ``f`` suffix and every libm
 call is the float variant (``sinf``), so no double arithmetic is emitted.
 Instructions outside the table raise, so no unknown operation is ever printed.
+
+C gets one statement per instruction (the compiler allocates registers). Python,
+where every statement costs interpreter time, gets the same operations as fewer
+statements (:func:`_python_statements`): each value a name of its own, constants
+written where they are used, and a value used once written into the expression
+that uses it (parenthesised: the same operations in the same order, so the same
+IEEE double results as one statement per instruction).
 """
 from __future__ import annotations
 
@@ -13,7 +20,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from derive.control.ranges import range_problem
+from derive.control.ranges import normal_range, range_problem
 from derive.errors import DerivationError
 
 # op -> (C template, Python template); {0}, {1}: operand registers, {f}: libm suffix
@@ -61,6 +68,16 @@ class Printed:
     unused_inputs: tuple[str, ...]
 
 
+def expected_literal(value: float, real: str) -> str:
+    """A self-test's expected value as c_literal writes it, except that a value below the
+    smallest normal number of ``real`` (an entry that is 0 but for the reference's last
+    digits, e.g. 1.7e-48 in a regressor column) is written 0: the self-tests compare within
+    tolerances far above it (norm-wise relative, or per entry at least the rounding of want)."""
+    if value != 0 and np.isfinite(value) and abs(value) < normal_range(real)[0]:
+        value = 0.0
+    return c_literal(value, real)
+
+
 def c_literal(value: float, real: str) -> str:
     """A C literal of the real type: double with 17 significant digits, float
     rounded to single precision with an ``f`` suffix.
@@ -86,10 +103,74 @@ def py_literal(value: float) -> str:
     return repr(float(value))
 
 
+_NESTING = 24   # the deepest expression a value used once is folded into (Python's parser has a limit)
+
+
+def _python_statements(f: ca.Function, ins: tuple[str, ...], outs: tuple[str, ...]) -> list[str]:
+    """Python statements computing ``f``: every value defined once (``a<k>``, numbered in order),
+    constants as literals where they are used, an input read once and a value used once folded
+    into the expression that uses it (up to _NESTING deep), anything else assigned to its name;
+    last, each output port a list literal of its entries (``u = [..., ...]``; 0.0 for an entry
+    no instruction writes)."""
+    # pass 1: values (one per instruction that defines a register), their uses
+    defs: list[tuple[int, int, tuple[int, ...]]] = []   # (instruction, op, operand values)
+    current: dict[int, int] = {}                         # register -> the value it holds
+    uses: list[int] = []
+    stores: list[tuple[int, int, int]] = []             # (output port, index, value)
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        args = f.instruction_input(k)
+        if op == ca.OP_OUTPUT:
+            uses[current[args[0]]] += 1
+            stores.append((*f.instruction_output(k), current[args[0]]))
+            continue
+        if op in (ca.OP_INPUT, ca.OP_CONST):
+            operands: tuple[int, ...] = ()
+        else:
+            if op not in _OPS:
+                raise DerivationError(f"kernel {f.name()}: CasADi operation {op} has no printer")
+            operands = tuple(current[a] for a in args)
+            for a, v in enumerate(operands):
+                uses[v] += _OPS[op][1].count("{%d}" % a)
+        current[f.instruction_output(k)[0]] = len(defs)
+        defs.append((k, op, operands))
+        uses.append(0)
+    # pass 2: expressions; (text, atomic, depth) per value
+    text: list[tuple[str, bool, int]] = []
+    lines: list[str] = []
+
+    def operand(v: int) -> tuple[str, int]:
+        t, atomic, depth = text[v]
+        return (t, 0) if atomic else (f"({t})", depth)
+
+    for v, (k, op, operands) in enumerate(defs):
+        if op == ca.OP_CONST:
+            lit = py_literal(f.instruction_constant(k))
+            text.append((lit, not lit.startswith("-"), 0))
+            continue
+        if op == ca.OP_INPUT:
+            port, index = f.instruction_input(k)
+            expr, depth = f"{ins[port]}[{index}]", 0
+        else:
+            parts = [operand(a) for a in operands]
+            expr = _OPS[op][1].format(*(p[0] for p in parts))
+            depth = 1 + max((p[1] for p in parts), default=0)
+        if uses[v] == 1 and depth < _NESTING:
+            text.append((expr, op == ca.OP_INPUT, depth))
+        else:
+            lines.append(f"a{v} = {expr}")
+            text.append((f"a{v}", True, 0))
+    entries = [["0.0"] * f.nnz_out(port) for port in range(f.n_out())]
+    for port, index, v in stores:
+        entries[port][index] = text[v][0]
+    return lines + [f"{outs[port]} = [{', '.join(e)}]" for port, e in enumerate(entries)]
+
+
 def print_function(f: ca.Function, language: str, real: str = "double",
                    inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None) -> Printed:
-    """Statements computing ``f`` with registers ``a0..``; inputs and outputs are
-    addressed as ``<port>[k]`` by port name (C arrays or Python sequences)."""
+    """Statements computing ``f``; inputs and outputs are addressed as ``<port>[k]`` by port
+    name (C arrays or Python sequences). C: one statement per instruction, registers ``a0..``;
+    Python: the same operations as fewer statements (:func:`_python_statements`)."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -103,22 +184,20 @@ def print_function(f: ca.Function, language: str, real: str = "double",
         res = f.instruction_output(k)
         if op == ca.OP_INPUT:
             read.add(args[0])
-            lines.append(f"a{res[0]} = {ins[args[0]]}[{args[1]}]")
+            lines.append(f"a{res[0]} = {ins[args[0]]}[{args[1]}];")
         elif op == ca.OP_OUTPUT:
-            lines.append(f"{outs[res[0]]}[{res[1]}] = a{args[0]}")
+            lines.append(f"{outs[res[0]]}[{res[1]}] = a{args[0]};")
         elif op == ca.OP_CONST:
-            value = f.instruction_constant(k)
-            lit = c_literal(value, real) if language == "c" else py_literal(value)
-            lines.append(f"a{res[0]} = {lit}")
+            if language == "c":
+                lines.append(f"a{res[0]} = {c_literal(f.instruction_constant(k), real)};")
         else:
             try:
-                template = _OPS[op][0 if language == "c" else 1]
+                template = _OPS[op][0]
             except KeyError:
                 raise DerivationError(f"kernel {f.name()}: CasADi operation {op} has no printer") from None
-            regs = [f"a{a}" for a in args]
-            lines.append(f"a{res[0]} = " + template.format(*regs, f=suffix, one=one))
+            lines.append(f"a{res[0]} = " + template.format(*(f"a{a}" for a in args), f=suffix, one=one) + ";")
             ops += 1
-    if language == "c":
-        lines = [line + ";" for line in lines]
+    if language != "c":
+        lines = _python_statements(f, ins, outs)
     unused = tuple(name for i, name in enumerate(ins) if i not in read)
     return Printed(registers=f.sz_w(), statements=tuple(lines), operations=ops, unused_inputs=unused)

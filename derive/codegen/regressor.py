@@ -25,7 +25,7 @@ import numpy as np
 
 from derive.codegen.balls import BallFunction, to_float, working_precision
 from derive.codegen.kernels import KernelSpec, Port
-from derive.codegen.printing import c_literal, py_literal
+from derive.codegen.printing import c_literal, expected_literal, py_literal
 from derive.codegen.reference import PRECISION, Reference, certified
 from derive.codegen.render import render
 from derive.codegen.testvectors import DOUBLE_TOL, float_bound
@@ -120,7 +120,8 @@ def regressor_view(reg: Regressor, real: str, prefix: str) -> RegressorView:
 def regressor_selftest(d: Derivation, reg: Regressor, rv: RegressorView, real: str, count: int = 8) -> RegressorSelftest:
     """Vectors at ``count`` states; double 1e-12, float 16 (K + p) 2^-24 for a kernel of K operations."""
     lit = lambda xs: tuple(c_literal(x, real) for x in xs)  # noqa: E731
-    cases = tuple(RegressorCase(lit(c.x), lit(c.Y), lit(c.tau)) for c in regressor_cases(d, reg, count))
+    want = lambda xs: tuple(expected_literal(x, real) for x in xs)  # noqa: E731
+    cases = tuple(RegressorCase(lit(c.x), want(c.Y), want(c.tau)) for c in regressor_cases(d, reg, count))
     if real == "double":
         tol_Y = tol_tau = c_literal(DOUBLE_TOL, "double")
         rule = f"double {DOUBLE_TOL:g}"

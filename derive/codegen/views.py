@@ -14,6 +14,7 @@ import numpy as np
 
 from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, ParamsMode, kernel_specs
+from derive.codegen.ldl import factor_size
 from derive.control.pipeline import Derivation
 from derive.control.ranges import check_ranges
 from derive.errors import Problem, SpecError
@@ -79,6 +80,7 @@ class ArmView:
     wrap_notes: tuple[str, ...] = ()            # comment lines: the outputs whose error is wrapped (continuous joints)
     u_word: str = "voltage"                     # what u is: voltage, torque, or input (mixed actuation)
     u_unit: str = "V"                           # its unit: V, N m, or one per motor
+    ldl_size: int = 0                           # reals of the LDL^T factor of J the DOBC step passes on
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -115,7 +117,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
              sample_time: str | None = None, observer: str = "explicit") -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
     the kernels' CasADi Functions from :func:`kernel_functions`, when at hand; ``sample_time``:
-    the sentence of derive.control.sampling.summary for the header, when the caller computed it;
+    the sentence of derive.control.limit_text.summary for the header, when the caller computed it;
     ``observer``: the observer step, derive.codegen.kernels.OBSERVER_STEPS).
 
     Raises SpecError naming the arm-file fields when a derived constant is not a normal
@@ -144,7 +146,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         mask=mask_type(d.n, arm.source),
         kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name))
                       for k in kernel_specs(d, mode, observer)),
-        k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])),
+        k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])), ldl_size=factor_size(d.n),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),

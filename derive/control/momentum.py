@@ -25,9 +25,15 @@ that is no function of e, e' and int e, so the law keeps a state of its own (it 
 PID only when J is constant).
 
 Discretised (derive.codegen.kernels): m_{k+1} = m_k + dt (B u_k + beta_k + r_k)
-with the applied u_k (forward Euler); r_k = K (J theta'_k - m_k). beta is built
-from the chain's Coriolis matrix (derive.dynamics.coriolis, O(n^2), no derivative
-of J: differentiating J costs seconds on a 6-joint arm) as C^T theta' - g - F theta'.
+with the applied u_k (forward Euler); r_k = K (J theta'_k - m_k). ``beta`` is the
+reference form, from the chain's Coriolis matrix (derive.dynamics.coriolis, O(n^2),
+no derivative of J) as C^T theta' - g - F theta'; the kernels compute ``p_rnea`` and
+``beta_rnea``, the same vectors by one recursion over the chain
+(derive.dynamics.momentum: J theta' and C^T theta' from the bodies' spatial momenta,
+De Luca and Ferrajoli 2009), neither J nor C formed. Under the composite law
+u = u* - B^-1 r (unclipped), B u + r = B u* = J a + G, so the step is
+m_{k+1} = m_k + dt (B u*_k + beta_k) + dt B (u_k - u_law,k): the last term is the
+voltage limit's share, zero while no joint is clipped.
 """
 from __future__ import annotations
 
@@ -45,7 +51,9 @@ class Momentum:
 
     k: the gain symbols kr1..krn [1/s], K = diag(k) (n x n); m: the state symbols
     (the integral of (*), n); p = J theta' (n x 1); beta = C^T theta' - g - F theta' (n x 1);
-    r = K (p - m) (n x 1); m_rate = B u + beta + r (n x 1); dhat = B^-1 r (n x 1).
+    r = K (p - m) (n x 1); m_rate = B u + beta + r (n x 1); dhat = B^-1 r (n x 1);
+    p_rnea, beta_rnea, dhat_rnea: p, beta and dhat as the kernels compute them (one recursion,
+    derive.dynamics.momentum), equal to p, beta and dhat.
     """
 
     k: tuple[sp.Symbol, ...]
@@ -56,6 +64,9 @@ class Momentum:
     r: sp.Matrix
     m_rate: sp.Matrix
     dhat: sp.Matrix
+    p_rnea: sp.Matrix
+    beta_rnea: sp.Matrix
+    dhat_rnea: sp.Matrix
 
 
 def state_symbols(n: int) -> tuple[sp.Symbol, ...]:
@@ -77,5 +88,7 @@ def derive_momentum(dyn: Dynamics) -> Momentum:
         - dyn.gravity - dyn.damping * dq
     r = K * (p - sp.Matrix(m))
     Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])   # B is diagonal (eq. 12)
+    p_rnea, ct = dyn.momentum   # J theta', C^T theta' by the recursion
+    beta_rnea = ct - dyn.gravity - dyn.damping * dq
     return Momentum(k=k, m=m, K=K, p=p, beta=beta, r=r, m_rate=dyn.B * sp.Matrix(s.u) + beta + r,
-                    dhat=Binv * r)
+                    dhat=Binv * r, p_rnea=p_rnea, beta_rnea=beta_rnea, dhat_rnea=Binv * K * (p_rnea - sp.Matrix(m)))

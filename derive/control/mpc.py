@@ -45,7 +45,8 @@ class Mpc:
     K1, K2: n x n (k1 I, k2 I with k1, k2 the expressions of T1, T2 of eq. 16-18,
     so a runtime T2 changes the gains); Cout: n x n output matrix C (eq. 13);
     u_star: n x 1 law (eq. 15) in e, e', yd'', theta, theta'; u_star_rnea: the
-    same law by the recursive Newton-Euler pass (what the kernels compute);
+    same law by the recursive Newton-Euler pass (what the kernels compute); a: n x 1 the
+    acceleration the law asks for, C^-1 (K1 e + K2 e' + yd''), so that J a + G = B u*;
     values: exact T1, T2.
     """
 
@@ -54,6 +55,7 @@ class Mpc:
     Cout: sp.Matrix
     u_star: sp.Matrix
     u_star_rnea: sp.Matrix
+    a: sp.Matrix
     values: tuple[tuple[sp.Symbol, sp.Rational], ...]
 
 
@@ -71,7 +73,8 @@ def derive_mpc(dyn: Dynamics, t1: Fraction, t2: Fraction, C: tuple[tuple[Fractio
     e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
     Binv = sp.diag(*[1 / dyn.B[i, i] for i in range(n)])
     u_star = Binv * dyn.J * Cout.inv() * (K1 * e + K2 * de + ddyd) + Binv * dyn.G
-    tau = dyn.inverse_dynamics(Cout.inv() * (K1 * e + K2 * de + ddyd))
+    a = Cout.inv() * (K1 * e + K2 * de + ddyd)
+    tau = dyn.inverse_dynamics(a)
     u_star_rnea = sp.Matrix([Binv[i, i] * tau[i] for i in range(n)])   # B is diagonal (eq. 12)
-    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, u_star_rnea=u_star_rnea,
+    return Mpc(K1=K1, K2=K2, Cout=Cout, u_star=u_star, u_star_rnea=u_star_rnea, a=a,
                values=((T1, _rational(t1)), (T2, _rational(t2))))

@@ -99,7 +99,8 @@ class Placeholders:
 class OpaqueDynamics:
     """A :class:`~derive.dynamics.equations.Dynamics` seen through placeholders: J, G,
     gravity and coriolis are the placeholder matrices; sym, chain, B, damping, reflected
-    and inverse_dynamics (the RNEA law, what the kernels compute) are the dynamics' own.
+    inverse_dynamics (the RNEA law, what the kernels compute) and momentum (J q', C^T q' by a
+    recursion) are the dynamics' own.
     The control stages take it where they take a Dynamics."""
 
     def __init__(self, dyn: Dynamics) -> None:
@@ -123,6 +124,10 @@ class OpaqueDynamics:
 
     def inverse_dynamics(self, ddq) -> sp.Matrix:
         return self.real.inverse_dynamics(ddq)
+
+    @property
+    def momentum(self) -> tuple[sp.Matrix, sp.Matrix]:
+        return self.real.momentum
 
     def inline(self, value, memo: Memo | None = None):
         """A stage's value with the dynamics put in: a matrix entry by entry, an unevaluated

@@ -50,6 +50,10 @@ bisection to 1 %) for which that holds at every operating point of derive.contro
 within the joint limits times the speeds of the speed box (controller.max_joint_speed, else the URDF's
 velocity limits, else at rest only; the box's vertices and each joint alone at its bound); the figure
 reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite grid.
+A loop already unstable at DT_MIN (1e-7 s) has no limit in that search: when its continuous
+linearisation (the limit dt -> 0 of every discretisation, :func:`_continuous_rate`) is stable at
+every point, the limit is "below 1e-7 s" (extreme gains: T2 = 1e-20 puts the MPC poles at
+-1.25e20 1/s), else there is none (the linearised loop is unstable as dt -> 0: not a sampling limit).
 Jacobians are central differences of the laws evaluated in double precision (numbers to 1e-6
 relative, far below the margin).
 """
@@ -79,8 +83,11 @@ ACTIVE = 16       # at least this many points (and 5 %) are followed through the
 @dataclass(frozen=True)
 class SampleLimit:
     """form, observer discretisation, limit [s] (``MARGIN`` of the largest stable dt; inf when stable
-    up to DT_MAX), raw [s], points: operating points checked, worst: the (theta, theta') that failed
-    first beyond the raw limit (None when none did)."""
+    up to DT_MAX; 0 when unstable at DT_MIN), raw [s], points: operating points checked, worst: the
+    (theta, theta') that failed first beyond the raw limit (None when none did); ``below``: unstable at
+    DT_MIN (raw = DT_MIN) while the continuous linearised loop is stable at every point (its fastest
+    mode needs a shorter sample time: the limit is below DT_MIN); without it a limit of 0 means the
+    linearised loop is unstable as dt -> 0 (not a sampling limit)."""
 
     form: str
     observer: str
@@ -88,6 +95,7 @@ class SampleLimit:
     raw: float
     points: int
     worst: tuple[tuple[float, ...], tuple[float, ...]] | None
+    below: bool = False   # unstable at DT_MIN though the continuous loop is stable at every point: limit < DT_MIN
 
 
 def _jac(f, X: np.ndarray, h: float = 1e-6) -> np.ndarray:
@@ -225,7 +233,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         return SampleLimit(form, observer, MARGIN * lo, lo, len(pts), worst)
 
     rho = radii(DT_MIN)
-    if rho.max() >= 1.0:   # unstable as dt -> 0: the linearised loop itself, not its sampling
+    if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
+        if _continuous_rate(loop, form, L).max() < 0.0:
+            worst = tuple(tuple(float(x) for x in v) for v in pts[int(rho.argmax())])
+            return SampleLimit(form, observer, 0.0, DT_MIN, len(pts), worst, below=True)
         return done(0.0, int(rho.argmax()))
     # doubling over every point from DT_START, then bisection over the points nearest to failing at the
     # bracket's upper end, then the whole grid at the result (again if a point fails there)
@@ -314,6 +325,39 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> n
     return np.abs(np.linalg.eigvals(M)).max(axis=-1)
 
 
+def _continuous_rate(loop: SampledLoop, form: str, L: dict) -> np.ndarray:
+    """The largest real part of the eigenvalues of the continuous linearised closed loop (the limit
+    dt -> 0 of every discretisation: M(dt) = I + dt A_cl + O(dt^2)) at every operating point: x' = A x
+    + Bu u, u = Ux x + Uc c, and the form's c' (DOBC z' = W J^-1 (dr x - B u - z); NPID int_e' = -C
+    theta; MOM in the residual's coordinates, as :func:`_residual`). Negative at every point: the
+    continuous loop is stable there, so a loop unstable at DT_MIN has a limit below it."""
+    n, m = loop.n, 2 * loop.n
+    P = L["A"].shape[0]
+    top = np.concatenate([L["A"] + L["Bu"] @ L["Ux"], L["Bu"] @ L["Uc"]], axis=-1)
+    if form == "mpc":
+        return np.linalg.eigvals(top[:, :, :m]).real.max(axis=-1)
+    if form == "dobc":
+        WJ = loop.W @ np.linalg.inv(L["J"])
+        bottom = np.concatenate([WJ @ (L["dr"] - loop.B @ L["Ux"]), -WJ @ (np.eye(n) + loop.B @ L["Uc"])], axis=-1)
+    elif form == "npid":
+        bottom = np.broadcast_to(np.hstack([-loop.C, np.zeros((n, 2 * n))]), (P, n, m + n))
+    else:                                     # mom: (x, m) -> (x, r), r = K (P x - m), with T' T^-1
+        R = L["R"]
+        bottom = np.concatenate([R[:, :, :m] + R[:, :, m + n:] @ L["Ux"], R[:, :, m:m + n] + R[:, :, m + n:] @ L["Uc"]],
+                                axis=-1)
+        A = np.concatenate([top, bottom], axis=-2)
+        K = loop.K
+        eye, zero = np.broadcast_to(np.eye(m), (P, m, m)), np.zeros((P, m, n))
+        T = np.concatenate([np.concatenate([eye, zero], axis=-1),
+                            np.concatenate([K @ L["P"], np.broadcast_to(-K, (P, n, n))], axis=-1)], axis=-2)
+        Tinv = np.concatenate([np.concatenate([eye, zero], axis=-1),
+                               np.concatenate([L["P"], np.broadcast_to(-np.linalg.inv(K), (P, n, n))], axis=-1)], axis=-2)
+        Tdot = np.zeros((P, m + n, m + n))
+        Tdot[:, m:, :m] = K @ L["Pdot"]
+        return np.linalg.eigvals(T @ A @ Tinv + Tdot @ Tinv).real.max(axis=-1)
+    return np.linalg.eigvals(np.concatenate([top, bottom], axis=-2)).real.max(axis=-1)
+
+
 def _residual(M: np.ndarray, L: dict, K: np.ndarray, dt: float) -> np.ndarray:
     """The MOM transition M over (x, m) in the residual's coordinates (x, r), r = K (J theta' - m),
     taken at the sample it maps from (P_k) and at the one it maps to (P_k+1 = P_k + dt P', the
@@ -367,59 +411,3 @@ def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
         return out
 
     return _cached(_LIMITS, d, observer, make)
-
-
-def _ms(x: float) -> str:
-    if x == 0:
-        return "none (the linearised loop is unstable as dt -> 0: not a sampling limit)"
-    return "none below 1 s" if math.isinf(x) else f"{x * 1e3:.3g} ms"
-
-
-def _how(d) -> str:
-    return (f"sampled loop, zero-order hold, linearised at {_grid(d).describe()}, "
-            f"{int(round((1 - MARGIN) * 100))} % margin")
-
-
-def covered(d) -> str:
-    """What the limits cover, in words: the grid's configurations and speeds (derive.control.grid)."""
-    return _grid(d).describe()
-
-
-def summary(d, observer: str = "explicit") -> str:
-    """One line: the largest sample time of each form with ``observer``, as the generated headers state it."""
-    lim = limits(d, observer)
-    parts = ", ".join(f"{f.upper()} {_ms(lim[f].limit)}" for f in FORMS)
-    return f"largest sample time ({_how(d)}; {observer} observer step): {parts}"
-
-
-def summary_all(d) -> str:
-    """One line with both discretisations, as ``derive check`` and ``derive show`` print it."""
-    e, i = limits(d, "explicit"), limits(d, "implicit")
-    return (f"largest sample time ({_how(d)}): MPC {_ms(e['mpc'].limit)}; MOM {_ms(e['mom'].limit)} "
-            f"(momentum observer, the same step in both builds); DOBC {_ms(e['dobc'].limit)}, "
-            f"NPID {_ms(e['npid'].limit)} with the forward-Euler observer step (derive generate's default); "
-            f"DOBC {_ms(i['dobc'].limit)}, NPID {_ms(i['npid'].limit)} with --observer implicit")
-
-
-def too_slow(d, sample_time: float, forms=FORMS, observer: str = "explicit") -> list[str]:
-    """Sentences for the forms whose limit (with ``observer``) ``sample_time`` [s] exceeds (empty when none),
-    each with the form's limit and, for an explicit build, its limit with ``--observer implicit`` and
-    whether that allows ``sample_time``."""
-    lim = limits(d, observer)
-    other = limits(d, "implicit") if observer == "explicit" else None
-    out = []
-    for f in forms:
-        if f not in lim or not sample_time > lim[f].limit:
-            continue
-        how = "" if observer == "explicit" else f" with --observer {observer}"
-        text = (f"sample_time = {sample_time * 1e3:g} ms is above the {f.upper()} limit {_ms(lim[f].limit)}{how} "
-                f"(the sampled loop is unstable from {_ms(lim[f].raw)} at some operating point)")
-        if other is not None and f not in SHARED:
-            alt = other[f].limit
-            text += (f"; with --observer implicit the {f.upper()} limit is {_ms(alt)}, "
-                     + ("which allows it" if sample_time <= alt else "which does not allow it either"))
-        elif other is not None:
-            text += f" (the same with --observer implicit: {f.upper()} has no observer step to change)" \
-                if f == "mpc" else " (the same with --observer implicit: the momentum observer steps alike in both)"
-        out.append(text)
-    return out

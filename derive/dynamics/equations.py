@@ -24,6 +24,7 @@ import sympy as sp
 from derive.dynamics.coriolis import coriolis_matrix
 from derive.dynamics.crba import Composite, composites, crba, gravity_torques
 from derive.dynamics.lagrange import lagrange_equations, reference_ring
+from derive.dynamics.momentum import momentum_terms
 from derive.dynamics.motors import motor_terms
 from derive.dynamics.program import dag_xreplace
 from derive.dynamics.regroup import base_parameters
@@ -105,6 +106,15 @@ class Dynamics:
         rigid = rnea(self.bodies, self.frames, self.sym.dtheta, list(a), vec(self.chain.gravity))
         reflected = sp.Matrix([mul(r, x) for r, x in zip(self.reflected, a)])
         return rigid + reflected + self.damping * sp.Matrix(self.sym.dtheta)
+
+    @cached_property
+    def momentum(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """(J(q) q', C(q, q')^T q'), n x 1 each: the generalized momentum (with the reflected
+        rotor inertias) and the transposed Coriolis matrix times q', by one recursive pass
+        (:mod:`derive.dynamics.momentum`), neither J nor C formed."""
+        p, ct = momentum_terms(self.bodies, self.frames, self.sym.dtheta)
+        rotor = sp.Matrix([mul(r, dq) for r, dq in zip(self.reflected, self.sym.dtheta)])
+        return p + rotor, ct
 
     @cached_property
     def velocity_bias(self) -> sp.Matrix:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import sympy as sp
 
 from derive.dynamics.crba import Composite
-from derive.dynamics.spatial import (ZERO, ZERO_VEC, Mat, Vec, add, cross, dot, keep_sums, matvec, scale, spin_matrix,
+from derive.dynamics.spatial import (ZERO, ZERO_VEC, backward_pass, Mat, Vec, add, cross, dot, keep_sums, matvec, scale, spin_matrix,
                                      JointFrame)
 
 
@@ -64,15 +64,7 @@ def rnea(bodies: Sequence[Composite], frames: Sequence[JointFrame], dq: Sequence
         forces.append(add(scale(c.M, a), matvec(U, c.h)))
         moments.append(add(Ial, add(cross(w, Iw), cross(c.h, a))))  # type: ignore[arg-type]
     tau = [ZERO] * n
-    F: Vec = ZERO_VEC
-    N: Vec = ZERO_VEC
-    for i in reversed(range(n)):
-        if i + 1 < n:
-            f = frames[i + 1]
-            F = f.to_parent(F)
-            N = add(f.to_parent(N), cross(f.p, F))
-        F = add(forces[i], F)
-        N = add(moments[i], N)
+    for i, F, N in backward_pass(frames, forces, moments):
         axis = frames[i].axis
         tau[i] = dot(axis, N) if frames[i].rotates else dot(axis, F)
     return sp.Matrix(tau)

@@ -278,3 +278,21 @@ class JointFrame:
         else:
             out = congruence(self.joint_R, inertia)
         return out if self._origin_identity else congruence(self.origin_R, out)
+
+
+def backward_pass(frames, forces: Sequence[Vec], moments: Sequence[Vec]):
+    """The recursions' backward pass (Featherstone 2008, the RNEA's second loop): yields, from the
+    tip down, (i, F, N), the force and moment [about F_i's origin, in F_i] that bodies i..n-1 carry
+    across joint i, given each body's own ``forces[i]`` and ``moments[i]`` in its frame and
+    ``frames[i]`` (JointFrame: to_parent, p) from body i-1 to body i."""
+    F: Vec = ZERO_VEC
+    N: Vec = ZERO_VEC
+    for i in reversed(range(len(forces))):
+        if i + 1 < len(forces):
+            f = frames[i + 1]
+            F = f.to_parent(F)
+            N = add(f.to_parent(N), cross(f.p, F))
+        F = add(forces[i], F)
+        N = add(moments[i], N)
+        yield i, F, N
+

@@ -29,6 +29,83 @@ def _number(x: sp.Number) -> float:
         raise DerivationError(f"the constant {x} overflows double") from None
 
 
+class _Sums:
+    """The sums converted so far, by their terms, so that a sum containing another one's terms
+    adds that sum's value instead of adding its terms again. SymPy flattens a sum of sums
+    (x = a + b + c shared, then x - d is stored as a + b + c - d), so the recursions'
+    shared partial sums (a body's force, a carried wrench) reach the converter as terms:
+    value numbering alone would add them again in every sum that contains them.
+
+    A term's key is (sign, what it multiplies): a + b matches the terms of -a - b with
+    the opposite sign (subtracted as one value)."""
+
+    def __init__(self) -> None:
+        self.keys: list[frozenset] = []
+        self.values: list = []
+        self.by_term: dict = {}
+
+    def cover(self, terms: set) -> list[tuple[int, object, frozenset]]:
+        """Greedy: the largest converted sums (sign, value, keys) whose terms, all with one
+        sign flipped or none, lie in ``terms`` and in no sum taken before."""
+        left = set(terms)
+        out = []
+        while len(left) >= 2:
+            best = None
+            for sign, key in left:
+                for k in self.by_term.get(key, ()):
+                    keys = self.keys[k]
+                    if best is not None and len(keys) <= len(best[2]):
+                        continue
+                    flip = sign * next(iter(keys))[0] if keys else 1
+                    if all((flip * sg, ky) in left for sg, ky in keys):
+                        best = (flip, self.values[k], keys, frozenset((flip * sg, ky) for sg, ky in keys))
+            if best is None:
+                break
+            out.append((best[0], best[1], best[3]))
+            left -= best[3]
+        return out
+
+    def add(self, keys: frozenset, value) -> None:
+        k = len(self.keys)
+        self.keys.append(keys)
+        self.values.append(value)
+        for _, key in keys:
+            self.by_term.setdefault(key, []).append(k)
+
+
+def _term_key(a: sp.Expr, memo: Memo) -> tuple:
+    """(sign, key) of a sum's term: -x and x share the key; a product by its factors' keys."""
+    sign = 1
+    if a.is_Mul and a.args[0] == -1:
+        sign, rest = -1, a.args[1:]
+        if len(rest) == 1:
+            a = rest[0]
+        else:
+            return sign, ("mul", tuple(memo.number(f) if f.args else f for f in rest))
+    if a.is_Mul:
+        return sign, ("mul", tuple(memo.number(f) if f.args else f for f in a.args))
+    return sign, (memo.number(a) if a.args else a)
+
+
+def _sum(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None) -> ca.SX:
+    """A sum, reusing the converted sums among its terms (:class:`_Sums`)."""
+    sums = getattr(memo, "sx_sums", None)
+    if sums is None:
+        sums = memo.sx_sums = _Sums()
+    keyed = {_term_key(a, memo): a for a in expr.args}
+    out = None
+    covered: set = set()
+    for sign, value, keys in sums.cover(set(keyed)):
+        covered |= keys
+        out = (value if sign > 0 else -value) if out is None else (out + value if sign > 0 else out - value)
+    for key, a in keyed.items():
+        if key not in covered:
+            t = to_sx(a, env, memo, constants)
+            out = t if out is None else out + t
+    sums.add(frozenset(keyed), out)
+    return out
+
+
 def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -> ca.SX:
     """CasADi SX of a SymPy expression; ``env`` maps symbols to SX scalars;
     ``memo`` (shared by the kernel's expressions) gives equal subexpressions
@@ -63,10 +140,11 @@ def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -
         else:
             out = constants.setdefault(expr, ca.SX.sym(f"c{len(constants)}"))
     elif expr.is_Add:
-        terms = [to_sx(a, env, memo, constants) for a in expr.args]
-        out = terms[0]
-        for t in terms[1:]:
-            out = out + t
+        out = _sum(expr, env, memo, constants)
+    elif expr.is_Mul and len(expr.args) == 2 and expr.args[0] == -1 and expr.args[1].is_Pow \
+            and expr.args[1].args[1] == -1:
+        # -1/x as one quotient: CasADi writes y (-1/x) as a product, y (1/x) as the quotient y/x
+        out = ca.SX(-1.0) / to_sx(expr.args[1].args[0], env, memo, constants)
     elif expr.is_Mul:
         factors = [to_sx(a, env, memo, constants) for a in expr.args]
         out = factors[0]

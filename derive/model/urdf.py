@@ -248,6 +248,10 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     repair = repair_choice(r, d.get("repair_inertia"), links)
     if parent is None or base is None or tip is None or r.problems:
         return None
+    if base == tip:
+        r.add("arm.tip_link", f"a link below the base link {base!r} (the chain runs from base to tip)",
+              f"{tip!r}: base and tip are the same link")
+        return None
     path, link = [], tip
     while link != base:
         if link not in parent:

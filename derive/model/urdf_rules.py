@@ -58,16 +58,21 @@ def mattering_joints(robot: Any, path: list, moving: set[str]) -> set[str]:
 
 def judge_findings(r: Reader, findings: list[Finding], links: set[str], joints: set[str], chain: set[str],
                    notes: list[str]) -> list[Problem]:
-    """Bad numbers of what matters become problems of ``r``; ignored elements that may
-    change the dynamics of what matters are returned as warnings (one per element and
+    """Bad numbers (and elements given twice, :attr:`Finding.twice`) of what matters become
+    problems of ``r``; elsewhere those are warnings (the first of the elements given twice read);
+    ignored elements that may change the dynamics of what matters are returned as warnings (one per element and
     kind of thing ignored, naming every link or joint; a ``<dynamics>`` only on a moving
     chain joint of ``chain``: a held joint's damping changes nothing); the rest notes."""
     grouped: dict[tuple, list[str]] = {}
+    warnings = []
     for f in findings:
         matters = f.name in (links if f.kind == "link" else joints)
         if f.number:
             if matters:
                 r.problems.append(f.problem)
+            elif f.twice:
+                off = " (not on the chain, read leniently)" if f.kind in ("link", "joint") else ""
+                warnings.append(Problem(f"{f.problem.field}{off}", f.problem.expected, f.problem.given))
             else:
                 notes.append(f"{f.problem.field} (not on the chain, not read): expected {f.problem.expected}, "
                              f"got {f.problem.given}")
@@ -75,7 +80,6 @@ def judge_findings(r: Reader, findings: list[Finding], links: set[str], joints: 
         dynamics = f.dynamics and (f.name in chain or "<dynamics>" not in f.problem.field)
         key = (f.kind, f.problem.field.split("'", 2)[-1], f.problem.expected, f.problem.given, matters and dynamics)
         grouped.setdefault(key, []).append(f.name)
-    warnings = []
     for (kind, where, expected, given, warn), names in grouped.items():
         owner = f"urdf {kind} {names[0]!r}" if len(names) == 1 else (
             f"urdf {kind}s {', '.join(map(repr, names[:4]))}{', ...' if len(names) > 4 else ''} ({len(names)} {kind}s)")

@@ -14,18 +14,23 @@ one note counts what was dropped. An unknown element or attribute inside a
 read element is recorded as a :class:`Finding` (``dynamics`` when it sits
 where it may change the dynamics: ``<inertial>``, a joint's ``<origin>``,
 ``<axis>``, ``<dynamics>``, ``<mimic>``; e.g. ``<dynamics><damping>100</damping>``,
-a child element that URDF does not define). Every number of the read
+a child element that URDF does not define). An element URDF defines once
+given more than once (two ``<mass>``: urdf_parser_py would keep the first and
+only say "Scalar element defined multiple times") is a Finding naming its link
+or joint and element; the first is read. Every number of the read
 elements is checked (the right count, finite); a bad one becomes a Finding
 naming its element and attribute and is replaced by zeros in what the parser
 sees. Whether a Finding is an error, a warning or a note is decided by
 :mod:`derive.model.urdf`, which knows the chain: strict where the element
 moves with the chain, a note elsewhere. Then ``urdf_parser_py`` (ROS's URDF
 parser; its lxml parser sees only the checked, cut-down text) builds the
-robot. Messages are shortened only at word boundaries (:func:`clip`).
+robot; whatever it still says is a Finding of the link or joint its message
+names (an error on the chain, a warning off it). Messages are shortened only at word boundaries (:func:`clip`).
 """
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -77,14 +82,16 @@ def clip(text: str, limit: int = 300) -> str:
 @dataclass(frozen=True)
 class Finding:
     """Something in the URDF derive did not use as written: a bad number (``number``) or
-    an unknown element or attribute. ``kind``, ``name``: the link or joint it belongs to;
-    ``dynamics``: it sits where it may change the dynamics."""
+    an unknown element or attribute, or an element URDF defines once given more than once
+    (``twice``, with ``number``: strict on the chain, a warning off it). ``kind``, ``name``: the
+    link or joint it belongs to; ``dynamics``: it sits where it may change the dynamics."""
 
     kind: str
     name: str
     problem: Problem
     number: bool = False
     dynamics: bool = False
+    twice: bool = False
 
 
 @dataclass
@@ -98,16 +105,17 @@ class UrdfDocument:
 
 
 def _problem_in_numbers(text: str, count: int) -> str | None:
+    what = f"{count} numbers separated by spaces" if count > 1 else "a number"
     parts = text.split()
     if len(parts) != count:
-        return f"{count} number{'s' if count > 1 else ''} separated by spaces"
+        return what
     for part in parts:
         try:
             x = float(part)
         except ValueError:
-            return f"{count} number{'s' if count > 1 else ''} separated by spaces"
+            return what
         if not math.isfinite(x):
-            return f"{count} finite number{'s' if count > 1 else ''}"
+            return f"{count} finite numbers" if count > 1 else "a finite number"
     return None
 
 
@@ -147,10 +155,17 @@ def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
                                                         _given(text)), number=True))
                 text = " ".join(["0"] * count)
             target.set(attr, text)
+        seen: Counter[str] = Counter(c.tag for c in source if isinstance(c.tag, str) and c.tag in children)
+        for tag, count in seen.items():
+            if count > 1:   # URDF defines each of these once; urdf_parser_py would keep the first silently
+                findings.append(Finding(*owner, Problem(f"urdf {owner[0]} {owner[1]!r} {_where(path + (tag,))}",
+                                                        f"one <{tag}>", f"{count}"), number=True, twice=True))
         for child in source:
             if not isinstance(child.tag, str):
                 continue
             if child.tag in children:
+                if seen[child.tag] > 1 and target.find(child.tag) is not None:
+                    continue   # the first is read; the repetition is a finding above
                 copy(child, SubElement(target, child.tag), path + (child.tag,), owner)
             elif child.tag in UNREAD.get(path, ()):
                 dropped[f"<{child.tag}>"] += 1
@@ -176,20 +191,20 @@ def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
     return out, notes, findings
 
 
-def _read(r: Reader, value: Any, base_dir: Path) -> bytes | None:
+def _read(r: Reader, value: Any, base_dir: Path, whence: str) -> bytes | None:
     if not isinstance(value, str) or not value:
-        r.bad(FIELD, "the path of a URDF file (relative to the arm file)", value)
+        r.bad(FIELD, f"the path of a URDF file ({whence})", value)
         return None
     path = base_dir / value
     try:
         with open(path, "rb") as stream:
             raw = stream.read(MAX_URDF_BYTES + 1)
     except FileNotFoundError:
-        r.add(FIELD, "a readable URDF file (path relative to the arm file)", f"{show(value)} (no such file: {path})")
+        r.add(FIELD, f"a readable URDF file ({whence})", f"{show(value)} (no such file: {path})")
         return None
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
-        r.add(FIELD, "a readable URDF file (path relative to the arm file)", f"{show(value)} ({why})")
+        r.add(FIELD, f"a readable URDF file ({whence})", f"{show(value)} ({why})")
         return None
     if len(raw) > MAX_URDF_BYTES:
         r.add(FIELD, f"a URDF file of at most {MAX_URDF_BYTES} bytes", f"{show(value)} (a larger file)")
@@ -234,10 +249,12 @@ def _safe_tree(r: Reader, raw: bytes) -> Element | None:
     return root
 
 
-def parse_safely(r: Reader, value: Any, base_dir: Path) -> UrdfDocument | None:
+def parse_safely(r: Reader, value: Any, base_dir: Path,
+                 whence: str = "path relative to the arm file") -> UrdfDocument | None:
     """The URDF file ``value`` names (relative to ``base_dir``) read as described in the
-    module docstring, or None after adding problems (file, XML, parser) to ``r``."""
-    raw = _read(r, value, base_dir)
+    module docstring, or None after adding problems (file, XML, parser) to ``r``; ``whence``
+    says in those messages where the path is from."""
+    raw = _read(r, value, base_dir, whence)
     if raw is None:
         return None
     root = _safe_tree(r, raw)
@@ -257,5 +274,19 @@ def parse_safely(r: Reader, value: Any, base_dir: Path) -> UrdfDocument | None:
         return None
     finally:
         core.on_error = previous
-    notes += [f"the URDF parser said: {clip(text)}" for text in said]
-    return UrdfDocument(robot, notes, findings)
+    return UrdfDocument(robot, notes, findings + [_parser_finding(text) for text in said])
+
+
+_OWNER = re.compile(r" in /robot(?:\[@name='[^']*'\])?/(link|joint)\[@name='([^']*)'\](\S*)\Z")
+
+
+def _parser_finding(text: str) -> Finding:
+    """What urdf_parser_py said (it reads on after it) as a Finding judged like an element given
+    twice: an error when its link or joint matters, else a warning; one its message does not place
+    under a link or joint is owned by the robot (a warning: no link or joint of the chain)."""
+    m = _OWNER.search(text)
+    kind, name, rest = m.groups() if m else ("robot", "", "")
+    where = "".join(f"<{tag}>" for tag in rest.split("/") if tag)
+    field = f"urdf {kind} {name!r} {where}".rstrip() if m else FIELD
+    return Finding(kind, name, Problem(field, "a URDF that urdf_parser_py reads without a complaint",
+                                       f"it said: {clip(text)}"), number=True, twice=True)

@@ -174,16 +174,23 @@ def stiffest_mode(d: Derivation, s: SimSettings, coulomb=None) -> dict:
     per joint the plant applies as the smooth law (derive.sim.plants.PlantSource.coulomb;
     default [simulation] coulomb_friction, derive's plant; MuJoCo's leaves it out where the
     file's friction loss replaces it)."""
-    from derive.model.actuators import terms
-
     plant = true_plant(d, s)
     rep = {sym: sp.Float(v, 17) for (sym, _), v in zip(d.values, plant.values)}
-    theta = list(d.dynamics.sym.theta)
-    J = np.array(lambdify(theta, [x.xreplace(rep) for x in d.dynamics.J])(*s.initial_theta), dtype=float)
-    damping = np.array([float(terms(a)[1].xreplace(rep)) for a in d.dynamics.chain.actuators])
-    tau_c = np.array(plant.coulomb if coulomb is None else coulomb, dtype=float)
-    damping += np.array(plant.viscous) + tau_c / SMOOTH
-    rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(d.n, d.n), np.diag(damping))).real))
+    return decay_mode(d.dynamics, rep, s, plant.viscous, plant.coulomb if coulomb is None else coulomb)
+
+
+def decay_mode(dynamics, values: dict, s: SimSettings, viscous, coulomb) -> dict:
+    """stiffest_mode's figures for ``dynamics`` (derive.dynamics.equations) at parameter
+    ``values`` {symbol: number}: the nominal plant when they are the arm file's (derive init
+    writes the substeps this asks for)."""
+    from derive.model.actuators import terms
+
+    theta = list(dynamics.sym.theta)
+    n = len(theta)
+    J = np.array(lambdify(theta, [x.xreplace(values) for x in dynamics.J])(*s.initial_theta), dtype=float)
+    damping = np.array([float(terms(a)[1].xreplace(values)) for a in dynamics.chain.actuators])
+    damping += np.array(viscous, dtype=float) + np.array(coulomb, dtype=float) / SMOOTH
+    rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(n, n), np.diag(damping))).real))
     h = s.sample_time / s.substeps
     return {"rate": rate, "h_rate": rate * h, "stable": rate * h <= RK4_REAL_LIMIT,
             "substeps": max(s.substeps, math.ceil(rate * s.sample_time / RK4_REAL_LIMIT))}

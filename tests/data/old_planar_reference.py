@@ -69,10 +69,11 @@ def kernel_inputs(module, name: str, k: int) -> list:
     return args
 
 
-def kernels(module) -> dict:
+def kernels(module, names=None) -> dict:
+    """The outputs of the module's kernels (``names``: those, default every one) at the points."""
+    names = [n for n in sorted(dir(module)) if n.startswith("_kernel_")] if names is None else names
     return {name: [list(map(float, _flat(getattr(module, name)(*kernel_inputs(module, name, k)))))
-                   for k in range(POINTS)]
-            for name in sorted(dir(module)) if name.startswith("_kernel_")}
+                   for k in range(POINTS)] for name in names}
 
 
 def _flat(x) -> list:

@@ -107,17 +107,18 @@ int glasgow_2link_dobc_init(glasgow_2link_dobc_state *s, const glasgow_2link_inp
 int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, real dt, real u[N],
     mask *clipped)
 {
-    real v[N], next[N];
+    real v[N], law[N], a[N], ldl[3], next[N];
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
-    glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v);
+    glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v, a, ldl);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
+        law[i] = v[i];
         if (clip(&v[i], u_max[i])) hit |= (mask)1 << i;
     }
-    glasgow_2link_kernel_observer(in->theta, in->dtheta, s->z, v, &dt, next);
+    glasgow_2link_kernel_observer(s->z, a, ldl, law, v, &dt, next);
     if (!finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) { s->z[i] = next[i]; u[i] = v[i]; }
     if (clipped != NULL) *clipped = hit;
@@ -149,17 +150,18 @@ int glasgow_2link_mom_init(glasgow_2link_mom_state *s, const glasgow_2link_input
 int glasgow_2link_mom_step(glasgow_2link_mom_state *s, const glasgow_2link_input *in, real dt, real u[N],
     mask *clipped)
 {
-    real v[N], dhat[N], next[N];
+    real v[N], law[N], dhat[N], rate[N], next[N];
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
-    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, v, dhat);
+    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, v, dhat, rate);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
+        law[i] = v[i];
         if (clip(&v[i], u_max[i])) hit |= (mask)1 << i;
     }
-    glasgow_2link_kernel_mom_next(in->theta, in->dtheta, s->m, v, &dt, next);
+    glasgow_2link_kernel_mom_next(s->m, rate, law, v, &dt, next);
     if (!finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) { s->m[i] = next[i]; u[i] = v[i]; }
     if (clipped != NULL) *clipped = hit;
@@ -168,10 +170,10 @@ int glasgow_2link_mom_step(glasgow_2link_mom_state *s, const glasgow_2link_input
 
 int glasgow_2link_mom_estimate(const glasgow_2link_mom_state *s, const glasgow_2link_input *in, real dhat[N])
 {
-    real law[N], v[N];
+    real law[N], v[N], rate[N];
     int i;
     if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
-    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, law, v);
+    glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, law, v, rate);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) dhat[i] = v[i];
     return GLASGOW_2LINK_OK;

@@ -15,18 +15,18 @@ void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link
 void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], glasgow_2link_real u[2]);
 /* Nonlinear PID predictive control law (eq. 34-38) and its integrator step */
 void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2]);
-/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27) */
-void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2]);
-/* Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically */
-void glasgow_2link_kernel_observer(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);
+/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step */
+void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real ldl[3]);
+/* Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J */
+void glasgow_2link_kernel_observer(const glasgow_2link_real z[2], const glasgow_2link_real a[2], const glasgow_2link_real ldl[3], const glasgow_2link_real u_law[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);
 /* Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31) */
 void glasgow_2link_kernel_dobc_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], glasgow_2link_real z0[2]);
 /* Disturbance estimate of the observer state (eq. 22) */
 void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow_2link_real z[2], glasgow_2link_real dhat[2]);
-/* Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat */
-void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real m[2], glasgow_2link_real u[2], glasgow_2link_real dhat[2]);
-/* Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r */
-void glasgow_2link_kernel_mom_next(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real m[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real m_next[2]);
+/* Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, and the observer's rate m' at that u */
+void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real m[2], glasgow_2link_real u[2], glasgow_2link_real dhat[2], glasgow_2link_real m_rate[2]);
+/* Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r */
+void glasgow_2link_kernel_mom_next(const glasgow_2link_real m[2], const glasgow_2link_real m_rate[2], const glasgow_2link_real u_law[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real m_next[2]);
 /* Momentum observer state at the first sample: the generalized momentum J theta' */
 void glasgow_2link_kernel_mom_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real m0[2]);
 

@@ -60,6 +60,7 @@ runtime, to change them):
     kr2 = 50.0 1/s (controller.momentum_gain[2])
 """
 from collections.abc import Sequence as _Sequence
+from itertools import chain as _chain
 from math import (cos as _cos, exp as _exp, isfinite as _isfinite, log as _log,  # noqa: F401
                   sin as _sin, sqrt as _sqrt, tan as _tan)
 from numbers import Real as _Real
@@ -110,623 +111,159 @@ U_MAX = (0.0, 0.0,)  # voltage limits [V], 0 = none
 
 def _kernel_gains(theta):
     """PID gains of the nonlinear PID predictive controller (eq. 35-37); 15 operations."""
-    gain_p = [0.0] * 4
-    gain_d = [0.0] * 4
-    gain_i = [0.0] * 4
-    a0 = 44.34782608695652
-    a1 = 70.95652173913044
-    a2 = 0.17929666666666666
-    a3 = 0.0810084
-    a4 = theta[1]
-    a4 = _cos(a4)
-    a3 = a3 * a4
-    a2 = a2 + a3
-    a3 = a1 * a2
-    a3 = a0 + a3
-    gain_p[0] = a3
-    a3 = 0.03181613333333334
-    a5 = 0.0405042
-    a5 = a5 * a4
-    a3 = a3 + a5
-    a5 = a1 * a3
-    gain_p[1] = a5
-    a5 = 340.90909090909093
-    a4 = 545.4545454545455
-    a6 = a4 * a3
-    a6 = a5 + a6
-    gain_p[2] = a6
-    a6 = 699.1724363636364
-    gain_p[3] = a6
-    a6 = 14.782608695652174
-    a2 = a0 * a2
-    a6 = a6 + a2
-    gain_d[0] = a6
-    a0 = a0 * a3
-    gain_d[1] = a0
-    a0 = 113.63636363636364
-    a5 = a5 * a3
-    a0 = a0 + a5
-    gain_d[2] = a0
-    a0 = 238.11913636363636
-    gain_d[3] = a0
-    gain_i[0] = a1
-    a1 = 0.0
-    gain_i[1] = a1
-    gain_i[2] = a4
-    a4 = 1090.909090909091
-    gain_i[3] = a4
+    a5 = _cos(theta[1])
+    a7 = 0.17929666666666666 + (0.0810084 * a5)
+    a13 = 0.03181613333333334 + (0.0405042 * a5)
+    gain_p = [44.34782608695652 + (70.95652173913044 * a7), 70.95652173913044 * a13, 340.90909090909093 + (545.4545454545455 * a13), 699.1724363636364]
+    gain_d = [14.782608695652174 + (44.34782608695652 * a7), 44.34782608695652 * a13, 113.63636363636364 + (340.90909090909093 * a13), 238.11913636363636]
+    gain_i = [70.95652173913044, 0.0, 545.4545454545455, 1090.909090909091]
     return gain_p, gain_d, gain_i
 
 
 def _kernel_mpc(theta, dtheta, yd, dyd, ddyd):
     """Nonlinear predictive control law u* (eq. 15); 44 operations."""
-    u = [0.0] * 2
-    a0 = 14.782608695652174
-    a1 = 0.38
-    a2 = -0.10659
     a3 = dtheta[0]
     a4 = dtheta[1]
     a5 = a3 + a4
-    a5 = a5 * a5
-    a2 = a2 * a5
-    a5 = theta[1]
-    a6 = _sin(a5)
-    a2 = a2 * a6
-    a7 = 0.10659
-    a8 = ddyd[0]
-    a9 = ddyd[1]
-    a9 = a8 + a9
-    a10 = 3.0
-    a11 = dyd[0]
-    a11 = a11 - a3
-    a11 = a10 * a11
-    a9 = a9 + a11
-    a12 = dyd[1]
-    a12 = a12 - a4
-    a10 = a10 * a12
-    a9 = a9 + a10
-    a10 = 4.8
-    a12 = yd[0]
-    a13 = theta[0]
-    a12 = a12 - a13
-    a12 = a10 * a12
-    a9 = a9 + a12
-    a13 = yd[1]
-    a13 = a13 - a5
-    a10 = a10 * a13
-    a9 = a9 + a10
-    a10 = a7 * a9
-    a5 = _cos(a5)
-    a10 = a10 * a5
-    a2 = a2 + a10
-    a2 = a1 * a2
-    a10 = 0.019617647058823528
-    a10 = a10 * a3
-    a2 = a2 + a10
-    a3 = a3 * a3
-    a3 = a1 * a3
-    a3 = a3 * a6
-    a8 = a8 + a11
-    a8 = a8 + a12
-    a1 = a1 * a8
-    a1 = a1 * a5
-    a3 = a3 + a1
-    a7 = a7 * a3
-    a2 = a2 + a7
-    a3 = 0.14748053333333333
-    a3 = a3 * a8
-    a2 = a2 + a3
-    a3 = 0.03181613333333334
-    a3 = a3 * a9
-    a2 = a2 + a3
-    a0 = a0 * a2
-    u[0] = a0
-    a0 = 113.63636363636364
-    a2 = 0.0004136
-    a2 = a2 * a4
-    a2 = a2 + a7
-    a2 = a2 + a3
-    a0 = a0 * a2
-    u[1] = a0
+    a8 = theta[1]
+    a9 = _sin(a8)
+    a12 = ddyd[0]
+    a18 = 3.0 * (dyd[0] - a3)
+    a28 = 4.8 * (yd[0] - theta[0])
+    a33 = ((((a12 + ddyd[1]) + a18) + (3.0 * (dyd[1] - a4))) + a28) + (4.8 * (yd[1] - a8))
+    a35 = _cos(a8)
+    a46 = (a12 + a18) + a28
+    a50 = 0.10659 * (((0.38 * (a3 * a3)) * a9) + ((0.38 * a46) * a35))
+    a56 = 0.03181613333333334 * a33
+    u = [14.782608695652174 * (((((0.38 * ((((-0.10659) * (a5 * a5)) * a9) + ((0.10659 * a33) * a35))) + (0.019617647058823528 * a3)) + a50) + (0.14748053333333333 * a46)) + a56), 113.63636363636364 * (((0.0004136 * a4) + a50) + a56)]
     return u
 
 
 def _kernel_npid(theta, dtheta, yd, dyd, ddyd, int_e, dt):
     """Nonlinear PID predictive control law (eq. 34-38) and its integrator step; 62 operations."""
-    u = [0.0] * 2
-    int_next = [0.0] * 2
-    a0 = 14.782608695652174
-    a1 = dyd[0]
     a2 = dtheta[0]
-    a1 = a1 - a2
-    a3 = 3.0
-    a4 = yd[0]
-    a5 = theta[0]
-    a4 = a4 - a5
-    a5 = a3 * a4
-    a5 = a1 + a5
-    a6 = 4.8
-    a7 = int_e[0]
-    a8 = a6 * a7
-    a5 = a5 + a8
-    a8 = a0 * a5
-    a9 = 0.38
-    a10 = -0.10659
-    a11 = dtheta[1]
-    a12 = a2 + a11
-    a12 = a12 * a12
-    a10 = a10 * a12
-    a12 = theta[1]
-    a13 = _sin(a12)
-    a10 = a10 * a13
-    a14 = 0.10659
-    a15 = ddyd[0]
-    a16 = ddyd[1]
-    a16 = a15 + a16
-    a1 = a3 * a1
-    a16 = a16 + a1
-    a17 = dyd[1]
-    a17 = a17 - a11
-    a18 = a3 * a17
-    a16 = a16 + a18
-    a18 = a6 * a4
-    a16 = a16 + a18
-    a19 = yd[1]
-    a19 = a19 - a12
-    a20 = a6 * a19
-    a16 = a16 + a20
-    a20 = a14 * a16
-    a12 = _cos(a12)
-    a20 = a20 * a12
-    a10 = a10 + a20
-    a10 = a9 * a10
-    a20 = 0.019617647058823528
-    a20 = a20 * a2
-    a10 = a10 + a20
-    a2 = a2 * a2
-    a2 = a9 * a2
-    a2 = a2 * a13
-    a15 = a15 + a1
-    a15 = a15 + a18
-    a9 = a9 * a15
-    a9 = a9 * a12
-    a2 = a2 + a9
-    a14 = a14 * a2
-    a10 = a10 + a14
-    a2 = 0.14748053333333333
-    a2 = a2 * a15
-    a10 = a10 + a2
-    a2 = 0.03181613333333334
-    a2 = a2 * a16
-    a10 = a10 + a2
-    a0 = a0 * a10
-    a8 = a8 + a0
-    u[0] = a8
-    a8 = 113.63636363636364
-    a0 = 0.0004136
-    a0 = a0 * a11
-    a0 = a0 + a14
-    a0 = a0 + a2
-    a0 = a8 * a0
-    a8 = a8 * a5
-    a0 = a0 + a8
-    a8 = 227.27272727272728
-    a3 = a3 * a19
-    a17 = a17 + a3
-    a3 = int_e[1]
-    a6 = a6 * a3
-    a17 = a17 + a6
-    a8 = a8 * a17
-    a0 = a0 + a8
-    u[1] = a0
-    a0 = dt[0]
-    a4 = a0 * a4
-    a7 = a7 + a4
-    int_next[0] = a7
-    a0 = a0 * a19
-    a3 = a3 + a0
-    int_next[1] = a3
+    a3 = dyd[0] - a2
+    a7 = yd[0] - theta[0]
+    a11 = int_e[0]
+    a13 = (a3 + (3.0 * a7)) + (4.8 * a11)
+    a17 = dtheta[1]
+    a18 = a2 + a17
+    a21 = theta[1]
+    a22 = _sin(a21)
+    a25 = ddyd[0]
+    a28 = 3.0 * a3
+    a31 = dyd[1] - a17
+    a34 = 4.8 * a7
+    a37 = yd[1] - a21
+    a39 = ((((a25 + ddyd[1]) + a28) + (3.0 * a31)) + a34) + (4.8 * a37)
+    a41 = _cos(a21)
+    a52 = (a25 + a28) + a34
+    a56 = 0.10659 * (((0.38 * (a2 * a2)) * a22) + ((0.38 * a52) * a41))
+    a62 = 0.03181613333333334 * a39
+    a77 = int_e[1]
+    a82 = dt[0]
+    u = [(14.782608695652174 * a13) + (14.782608695652174 * (((((0.38 * ((((-0.10659) * (a18 * a18)) * a22) + ((0.10659 * a39) * a41))) + (0.019617647058823528 * a2)) + a56) + (0.14748053333333333 * a52)) + a62)), ((113.63636363636364 * (((0.0004136 * a17) + a56) + a62)) + (113.63636363636364 * a13)) + (227.27272727272728 * ((a31 + (3.0 * a37)) + (4.8 * a77)))]
+    int_next = [a11 + (a82 * a7), a77 + (a82 * a37)]
     return u, int_next
 
 
 def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
-    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27); 52 operations."""
-    u = [0.0] * 2
-    a0 = -14.782608695652174
+    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step; 63 operations."""
     a1 = dtheta[0]
-    a2 = z[0]
-    a2 = a1 + a2
-    a0 = a0 * a2
-    a2 = 14.782608695652174
-    a3 = 0.38
-    a4 = -0.10659
-    a5 = dtheta[1]
-    a6 = a1 + a5
-    a6 = a6 * a6
-    a4 = a4 * a6
-    a6 = theta[1]
-    a7 = _sin(a6)
-    a4 = a4 * a7
-    a8 = 0.10659
-    a9 = ddyd[0]
-    a10 = ddyd[1]
-    a10 = a9 + a10
-    a11 = 3.0
-    a12 = dyd[0]
-    a12 = a12 - a1
-    a12 = a11 * a12
-    a10 = a10 + a12
-    a13 = dyd[1]
-    a13 = a13 - a5
-    a11 = a11 * a13
-    a10 = a10 + a11
-    a11 = 4.8
-    a13 = yd[0]
-    a14 = theta[0]
-    a13 = a13 - a14
-    a13 = a11 * a13
-    a10 = a10 + a13
-    a14 = yd[1]
-    a14 = a14 - a6
-    a11 = a11 * a14
-    a10 = a10 + a11
-    a11 = a8 * a10
-    a6 = _cos(a6)
-    a11 = a11 * a6
-    a4 = a4 + a11
-    a4 = a3 * a4
-    a11 = 0.019617647058823528
-    a11 = a11 * a1
-    a4 = a4 + a11
-    a11 = a1 * a1
-    a11 = a3 * a11
-    a11 = a11 * a7
-    a9 = a9 + a12
-    a9 = a9 + a13
-    a3 = a3 * a9
-    a3 = a3 * a6
-    a11 = a11 + a3
-    a8 = a8 * a11
-    a4 = a4 + a8
-    a11 = 0.14748053333333333
-    a11 = a11 * a9
-    a4 = a4 + a11
-    a11 = 0.03181613333333334
-    a11 = a11 * a10
-    a4 = a4 + a11
-    a2 = a2 * a4
-    a0 = a0 + a2
-    u[0] = a0
-    a0 = -113.63636363636364
-    a2 = z[1]
-    a1 = a1 + a2
-    a2 = a5 + a5
-    a1 = a1 + a2
-    a0 = a0 * a1
-    a1 = 113.63636363636364
-    a2 = 0.0004136
-    a2 = a2 * a5
-    a2 = a2 + a8
-    a2 = a2 + a11
-    a1 = a1 * a2
-    a0 = a0 + a1
-    u[1] = a0
-    return u
+    a8 = dtheta[1]
+    a9 = a1 + a8
+    a12 = theta[1]
+    a13 = _sin(a12)
+    a16 = ddyd[0]
+    a17 = ddyd[1]
+    a22 = 3.0 * (dyd[0] - a1)
+    a26 = 3.0 * (dyd[1] - a8)
+    a32 = 4.8 * (yd[0] - theta[0])
+    a36 = 4.8 * (yd[1] - a12)
+    a37 = ((((a16 + a17) + a22) + a26) + a32) + a36
+    a39 = _cos(a12)
+    a50 = (a16 + a22) + a32
+    a54 = 0.10659 * (((0.38 * (a1 * a1)) * a13) + ((0.38 * a50) * a39))
+    a60 = 0.03181613333333334 * a37
+    a81 = 0.03181613333333334 + (0.0405042 * a39)
+    a87 = (-1.0) / (0.17929666666666666 + (0.0810084 * a39))
+    a88 = a81 * a87
+    u = [((-14.782608695652174) * (a1 + z[0])) + (14.782608695652174 * (((((0.38 * ((((-0.10659) * (a9 * a9)) * a13) + ((0.10659 * a37) * a39))) + (0.019617647058823528 * a1)) + a54) + (0.14748053333333333 * a50)) + a60)), ((-113.63636363636364) * ((a1 + z[1]) + (a8 + a8))) + (113.63636363636364 * (((0.0004136 * a8) + a54) + a60))]
+    a = [a50, (a17 + a26) + a36]
+    ldl = [a88, a87, (-1.0) / (0.03181613333333334 + (a81 * a88))]
+    return u, a, ldl
 
 
-def _kernel_observer(theta, dtheta, z, u, dt):
-    """Disturbance observer step (eq. 21, 24): J y = G - B u - W theta' - z solved numerically; 43 operations."""
-    z_next = [0.0] * 2
-    a0 = z[0]
-    a1 = 0.03181613333333334
-    a2 = 0.17929666666666666
-    a3 = 0.0810084
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a3 = a3 * a5
-    a2 = a2 + a3
-    a3 = a1 * a2
-    a6 = 0.0405042
-    a5 = a6 * a5
-    a5 = a1 + a5
-    a7 = a5 * a5
-    a3 = a3 - a7
-    a1 = a1 / a3
-    a7 = -0.9803823529411765
-    a8 = dtheta[0]
-    a7 = a7 * a8
-    a7 = a7 - a0
-    a9 = -0.06764705882352941
-    a10 = u[0]
-    a9 = a9 * a10
-    a7 = a7 + a9
-    a9 = -0.0405042
-    a10 = dtheta[1]
-    a11 = a8 + a10
-    a11 = a11 * a11
-    a9 = a9 * a11
-    a4 = _sin(a4)
-    a9 = a9 * a4
-    a7 = a7 + a9
-    a9 = a8 * a8
-    a6 = a6 * a9
-    a6 = a6 * a4
-    a7 = a7 + a6
-    a1 = a1 * a7
-    a5 = a5 / a3
-    a4 = -1.9995864
-    a4 = a4 * a10
-    a10 = z[1]
-    a8 = a8 + a10
-    a4 = a4 - a8
-    a8 = -0.0088
-    a9 = u[1]
-    a8 = a8 * a9
-    a4 = a4 + a8
-    a4 = a4 + a6
-    a6 = a5 * a4
-    a1 = a1 - a6
-    a6 = dt[0]
-    a1 = a1 * a6
-    a0 = a0 + a1
-    z_next[0] = a0
-    a10 = a10 + a1
-    a2 = a2 / a3
-    a2 = a2 * a4
-    a5 = a5 * a7
-    a2 = a2 - a5
-    a2 = a2 + a2
-    a2 = a2 * a6
-    a10 = a10 + a2
-    z_next[1] = a10
+def _kernel_observer(z, a, ldl, u_law, u, dt):
+    """Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J; 21 operations."""
+    a1 = dt[0]
+    a8 = ((-0.06764705882352941) * u_law[0]) + (0.06764705882352941 * u[0])
+    a13 = ldl[0]
+    a22 = (((-0.0088) * u_law[1]) + (0.0088 * u[1])) + (a13 * a8)
+    a23 = ldl[2]
+    a27 = a1 * (((a8 * ldl[1]) - a[0]) + (a13 * (a22 * a23)))
+    z_next = [z[0] + a27, (z[1] + a27) + ((a1 + a1) * ((a23 * a22) - a[1]))]
     return z_next
 
 
 def _kernel_dobc_init(theta, dtheta, yd, dyd):
-    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 12 operations."""
-    z0 = [0.0] * 2
-    a0 = -3.0
-    a1 = yd[0]
-    a2 = theta[0]
-    a1 = a1 - a2
-    a0 = a0 * a1
-    a1 = dyd[0]
-    a2 = a0 - a1
-    z0[0] = a2
-    a2 = -6.0
-    a3 = yd[1]
-    a4 = theta[1]
-    a3 = a3 - a4
-    a2 = a2 * a3
-    a2 = a2 - a1
-    a2 = a2 + a0
-    a0 = -2.0
-    a1 = dtheta[1]
-    a3 = a0 * a1
-    a2 = a2 + a3
-    a3 = dyd[1]
-    a3 = a3 - a1
-    a0 = a0 * a3
-    a2 = a2 + a0
-    z0[1] = a2
+    """Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31); 11 operations."""
+    a6 = ((-3.0) * (yd[0] - theta[0])) - dyd[0]
+    a14 = dtheta[1]
+    z0 = [a6, ((a6 + ((-6.0) * (yd[1] - theta[1]))) + ((-2.0) * a14)) + ((-2.0) * (dyd[1] - a14))]
     return z0
 
 
 def _kernel_dhat(dtheta, z):
     """Disturbance estimate of the observer state (eq. 22); 6 operations."""
-    dhat = [0.0] * 2
-    a0 = 14.782608695652174
     a1 = dtheta[0]
-    a2 = z[0]
-    a2 = a1 + a2
-    a0 = a0 * a2
-    dhat[0] = a0
-    a0 = 113.63636363636364
-    a2 = z[1]
-    a1 = a1 + a2
-    a2 = dtheta[1]
-    a2 = a2 + a2
-    a1 = a1 + a2
-    a0 = a0 * a1
-    dhat[1] = a0
+    a8 = dtheta[1]
+    dhat = [14.782608695652174 * (a1 + z[0]), 113.63636363636364 * ((a1 + z[1]) + (a8 + a8))]
     return dhat
 
 
 def _kernel_mom(theta, dtheta, yd, dyd, ddyd, m):
-    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, and dhat; 62 operations."""
-    u = [0.0] * 2
-    dhat = [0.0] * 2
-    a0 = -739.1304347826087
-    a1 = dtheta[0]
-    a2 = 0.17929666666666666
-    a3 = 0.0810084
-    a4 = theta[1]
-    a5 = _cos(a4)
-    a3 = a3 * a5
-    a2 = a2 + a3
-    a2 = a1 * a2
-    a3 = m[0]
-    a2 = a2 - a3
-    a3 = dtheta[1]
-    a6 = 0.03181613333333334
-    a7 = 0.0405042
-    a7 = a7 * a5
-    a7 = a6 + a7
-    a8 = a3 * a7
-    a2 = a2 + a8
-    a0 = a0 * a2
-    a8 = 14.782608695652174
-    a9 = 0.38
-    a10 = -0.10659
-    a11 = a1 + a3
-    a11 = a11 * a11
-    a10 = a10 * a11
-    a11 = _sin(a4)
-    a10 = a10 * a11
-    a12 = 0.10659
-    a13 = ddyd[0]
-    a14 = ddyd[1]
-    a14 = a13 + a14
-    a15 = 3.0
-    a16 = dyd[0]
-    a16 = a16 - a1
-    a16 = a15 * a16
-    a14 = a14 + a16
-    a17 = dyd[1]
-    a17 = a17 - a3
-    a15 = a15 * a17
-    a14 = a14 + a15
-    a15 = 4.8
-    a17 = yd[0]
-    a18 = theta[0]
-    a17 = a17 - a18
-    a17 = a15 * a17
-    a14 = a14 + a17
-    a18 = yd[1]
-    a18 = a18 - a4
-    a15 = a15 * a18
-    a14 = a14 + a15
-    a15 = a12 * a14
-    a15 = a15 * a5
-    a10 = a10 + a15
-    a10 = a9 * a10
-    a15 = 0.019617647058823528
-    a15 = a15 * a1
-    a10 = a10 + a15
-    a15 = a1 * a1
-    a15 = a9 * a15
-    a15 = a15 * a11
-    a13 = a13 + a16
-    a13 = a13 + a17
-    a9 = a9 * a13
-    a9 = a9 * a5
-    a15 = a15 + a9
-    a12 = a12 * a15
-    a10 = a10 + a12
-    a15 = 0.14748053333333333
-    a15 = a15 * a13
-    a10 = a10 + a15
-    a14 = a6 * a14
-    a10 = a10 + a14
-    a8 = a8 * a10
-    a0 = a0 + a8
-    u[0] = a0
-    a0 = -5681.818181818182
-    a6 = a6 * a3
-    a8 = m[1]
-    a6 = a6 - a8
-    a1 = a1 * a7
-    a6 = a6 + a1
-    a0 = a0 * a6
-    a1 = 113.63636363636364
-    a7 = 0.0004136
-    a7 = a7 * a3
-    a7 = a7 + a12
-    a7 = a7 + a14
-    a1 = a1 * a7
-    a0 = a0 + a1
-    u[1] = a0
-    a0 = 739.1304347826087
-    a0 = a0 * a2
-    dhat[0] = a0
-    a0 = 5681.818181818182
-    a0 = a0 * a6
-    dhat[1] = a0
-    return u, dhat
+    """Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, and the observer's rate m' at that u; 70 operations."""
+    a2 = dtheta[0]
+    a7 = dtheta[1]
+    a8 = a2 + a7
+    a9 = 0.03181613333333334 * a8
+    a13 = theta[1]
+    a14 = _cos(a13)
+    a15 = (0.0405042 * a2) * a14
+    a19 = ((((0.14748053333333333 * a2) - m[0]) + a9) + a15) + ((0.0405042 * a8) * a14)
+    a26 = _sin(a13)
+    a29 = ddyd[0]
+    a35 = 3.0 * (dyd[0] - a2)
+    a45 = 4.8 * (yd[0] - theta[0])
+    a50 = ((((a29 + ddyd[1]) + a35) + (3.0 * (dyd[1] - a7))) + a45) + (4.8 * (yd[1] - a13))
+    a54 = 0.38 * ((((-0.10659) * (a8 * a8)) * a26) + ((0.10659 * a50) * a14))
+    a62 = (a29 + a35) + a45
+    a66 = 0.10659 * (((0.38 * (a2 * a2)) * a26) + ((0.38 * a62) * a14))
+    a68 = 0.14748053333333333 * a62
+    a70 = 0.03181613333333334 * a50
+    a77 = (a9 - m[1]) + a15
+    u = [((-739.1304347826087) * a19) + (14.782608695652174 * ((((a54 + (0.019617647058823528 * a2)) + a66) + a68) + a70)), ((-5681.818181818182) * a77) + (113.63636363636364 * (((0.0004136 * a7) + a66) + a70))]
+    dhat = [739.1304347826087 * a19, 5681.818181818182 * a77]
+    m_rate = [((a54 + a66) + a68) + a70, (a66 + a70) + ((((-0.0405042) * a2) * a8) * a26)]
+    return u, dhat, m_rate
 
 
-def _kernel_mom_next(theta, dtheta, m, u, dt):
-    """Momentum observer step: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 43 operations."""
-    m_next = [0.0] * 2
-    a0 = m[0]
+def _kernel_mom_next(m, m_rate, u_law, u, dt):
+    """Momentum observer step with the applied u: forward Euler of m' = B u + C^T theta' - g - F theta' + r; 12 operations."""
     a1 = dt[0]
-    a2 = 50.0
-    a3 = dtheta[0]
-    a4 = 0.17929666666666666
-    a5 = 0.0810084
-    a6 = theta[1]
-    a7 = _cos(a6)
-    a5 = a5 * a7
-    a4 = a4 + a5
-    a4 = a3 * a4
-    a4 = a4 - a0
-    a5 = dtheta[1]
-    a8 = 0.03181613333333334
-    a9 = 0.0405042
-    a7 = a9 * a7
-    a7 = a8 + a7
-    a10 = a5 * a7
-    a4 = a4 + a10
-    a4 = a2 * a4
-    a10 = -0.019617647058823528
-    a10 = a10 * a3
-    a4 = a4 + a10
-    a10 = 0.06764705882352941
-    a11 = u[0]
-    a10 = a10 * a11
-    a4 = a4 + a10
-    a10 = -0.0405042
-    a11 = a3 + a5
-    a12 = a10 * a11
-    a6 = _sin(a6)
-    a12 = a12 * a6
-    a9 = a9 * a3
-    a13 = a9 * a6
-    a12 = a12 + a13
-    a12 = a3 * a12
-    a4 = a4 + a12
-    a9 = a9 * a5
-    a9 = a9 * a6
-    a4 = a4 + a9
-    a4 = a1 * a4
-    a0 = a0 + a4
-    m_next[0] = a0
-    a0 = m[1]
-    a8 = a8 * a5
-    a8 = a8 - a0
-    a7 = a3 * a7
-    a8 = a8 + a7
-    a2 = a2 * a8
-    a8 = -0.0004136
-    a8 = a8 * a5
-    a2 = a2 + a8
-    a8 = 0.0088
-    a5 = u[1]
-    a8 = a8 * a5
-    a2 = a2 + a8
-    a10 = a10 * a3
-    a10 = a10 * a11
-    a10 = a10 * a6
-    a2 = a2 + a10
-    a1 = a1 * a2
-    a0 = a0 + a1
-    m_next[1] = a0
+    m_next = [m[0] + (a1 * ((m_rate[0] + ((-0.06764705882352941) * u_law[0])) + (0.06764705882352941 * u[0]))), m[1] + (a1 * ((m_rate[1] + ((-0.0088) * u_law[1])) + (0.0088 * u[1])))]
     return m_next
 
 
 def _kernel_mom_init(theta, dtheta):
-    """Momentum observer state at the first sample: the generalized momentum J theta'; 11 operations."""
-    m0 = [0.0] * 2
-    a0 = dtheta[0]
-    a1 = 0.17929666666666666
-    a2 = 0.0810084
-    a3 = theta[1]
-    a3 = _cos(a3)
-    a2 = a2 * a3
-    a1 = a1 + a2
-    a1 = a0 * a1
-    a2 = dtheta[1]
-    a4 = 0.03181613333333334
-    a5 = 0.0405042
-    a5 = a5 * a3
-    a5 = a4 + a5
-    a3 = a2 * a5
-    a1 = a1 + a3
-    m0[0] = a1
-    a4 = a4 * a2
-    a0 = a0 * a5
-    a4 = a4 + a0
-    m0[1] = a4
+    """Momentum observer state at the first sample: the generalized momentum J theta'; 12 operations."""
+    a1 = dtheta[0]
+    a5 = a1 + dtheta[1]
+    a6 = 0.03181613333333334 * a5
+    a11 = _cos(theta[1])
+    a12 = (0.0405042 * a1) * a11
+    m0 = [(((0.14748053333333333 * a1) + a6) + a12) + ((0.0405042 * a5) * a11), a6 + a12]
     return m0
 
 
@@ -786,23 +323,53 @@ def _state(state, field):
     return _vector(f"state.{field}", getattr(state, field))
 
 
+def _args(inp, dt, state, field, field2=None):
+    """(code, vectors, dt) of a step: the five vectors of ``inp``, state.<field> (and
+    state.<field2>) and dt, checked; code EDT for a dt that is not finite and positive, else
+    ENONFINITE for a non-finite entry, else OK. Lists of N floats and a float dt pass one
+    combined check (the common case); anything else goes through _input, _state and _scalar,
+    which convert it or raise naming it, in that order."""
+    try:
+        v = (inp.theta, inp.dtheta, inp.yd, inp.dyd, inp.ddyd, getattr(state, field))
+        if field2 is not None:
+            v += (getattr(state, field2),)
+    except AttributeError:
+        v = ((),)   # not an Input or not the state: _input or _state below names it
+    flat = []
+    for x in v:
+        if type(x) is not list or len(x) != N:
+            break
+        flat += x
+    else:
+        if type(dt) is float and set(map(type, flat)) == _FLOAT:
+            if not (_isfinite(dt) and dt > 0):
+                return EDT, v, dt
+            return (OK if _isfinite(sum(flat)) or _finite(flat) else ENONFINITE), v, dt
+    v = (*_input(inp), _state(state, field)) + (() if field2 is None else (_state(state, field2),))
+    dt = _scalar("dt", dt)
+    if not (_isfinite(dt) and dt > 0):
+        return EDT, v, dt
+    return (OK if _finite(*v) else ENONFINITE), v, dt
+
+
 def _finite(*vectors):
-    return all(_isfinite(x) for v in vectors for x in v)
+    """Every entry finite: their sum is unless one is inf or nan (or the sum overflows: then
+    each entry is checked)."""
+    return _isfinite(sum(_chain.from_iterable(vectors))) or all(_isfinite(x) for v in vectors for x in v)
 
 
 def _clip(v, limits):
-    """(clipped v, which entries were clipped)."""
-    out, hit = [], []
-    for x, lim in zip(v, limits):
-        limited = lim > 0 and abs(x) > lim
-        out.append((lim if x > 0 else -lim) if limited else x)
-        hit.append(limited)
-    return out, hit
-
-
-def _mask(hit):
-    """The bitmask of the clipped joints: bit i for joint i + 1."""
-    return sum(1 << i for i, h in enumerate(hit) if h)
+    """(v clipped to the limits (0 = none), the bitmask of the clipped joints: bit i for joint i + 1)."""
+    if not any(limits):
+        return v, 0
+    out, mask = [], 0
+    for i, (x, lim) in enumerate(zip(v, limits)):
+        if lim > 0 and abs(x) > lim:
+            out.append(lim if x > 0 else -lim)
+            mask |= 1 << i
+        else:
+            out.append(x)
+    return out, mask
 
 
 def gains(theta):
@@ -819,8 +386,8 @@ def mpc_step(inp):
     (u,) = (_kernel_mpc(*x),)
     if not _finite(u):
         return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    return OK, np.array(u), _mask(hit)
+    u, mask = _clip(u, U_MAX)
+    return OK, np.array(u), mask
 
 
 def npid_init(state, inp):
@@ -835,17 +402,15 @@ def npid_init(state, inp):
 
 def npid_step(state, inp, dt):
     """(code, u, clipped) of one step of u = P e + D e' + I int e + N (eq. 34)."""
-    x, int_e, dt = _input(inp), _state(state, "int_e"), _scalar("dt", dt)
-    if not (_isfinite(dt) and dt > 0):
-        return EDT, None, None
-    if not _finite(*x, int_e):
-        return ENONFINITE, None, None
-    u, step = _kernel_npid(*x, int_e, (dt,))
+    code, x, dt = _args(inp, dt, state, "int_e")
+    if code:
+        return code, None, None
+    u, step = _kernel_npid(*x, (dt,))
     if not _finite(u, step):
         return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    state.int_e = [i if h else i_next for i, i_next, h in zip(int_e, step, hit)]
-    return OK, np.array(u), _mask(hit)
+    u, mask = _clip(u, U_MAX)
+    state.int_e = [i if mask >> k & 1 else i_next for k, (i, i_next) in enumerate(zip(x[5], step))] if mask else step
+    return OK, np.array(u), mask
 
 
 def dobc_init(state, inp):
@@ -863,20 +428,18 @@ def dobc_init(state, inp):
 
 def dobc_step(state, inp, dt):
     """(code, u, clipped) of one step of u = u* - dhat with the observer (eq. 21-27)."""
-    x, z, dt = _input(inp), _state(state, "z"), _scalar("dt", dt)
-    if not (_isfinite(dt) and dt > 0):
-        return EDT, None, None
-    if not _finite(*x, z):
+    code, x, dt = _args(inp, dt, state, "z")
+    if code:
+        return code, None, None
+    law, a, ldl = _kernel_dobc(*x)
+    if not _finite(law):
         return ENONFINITE, None, None
-    (u,) = (_kernel_dobc(*x, z),)
-    if not _finite(u):
-        return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    (nxt,) = (_kernel_observer(x[0], x[1], z, u, (dt,)),)
+    u, mask = _clip(law, U_MAX)
+    (nxt,) = (_kernel_observer(x[5], a, ldl, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
     state.z = nxt
-    return OK, np.array(u), _mask(hit)
+    return OK, np.array(u), mask
 
 
 def dobc_estimate(state, inp):
@@ -909,20 +472,18 @@ def mom_step(state, inp, dt):
     generalized-momentum observer, then m + dt (B u + C^T theta' - g - F theta' + r) with
     the applied u (forward Euler): r' = K (B d - r) for any K > 0 and any speed; it does
     not reduce to a PID (derive.control.momentum)."""
-    x, m, dt = _input(inp), _state(state, "m"), _scalar("dt", dt)
-    if not (_isfinite(dt) and dt > 0):
-        return EDT, None, None
-    if not _finite(*x, m):
+    code, x, dt = _args(inp, dt, state, "m")
+    if code:
+        return code, None, None
+    law, _, rate = _kernel_mom(*x)
+    if not _finite(law):
         return ENONFINITE, None, None
-    u, _ = _kernel_mom(*x, m)
-    if not _finite(u):
-        return ENONFINITE, None, None
-    u, hit = _clip(u, U_MAX)
-    (nxt,) = (_kernel_mom_next(x[0], x[1], m, u, (dt,)),)
+    u, mask = _clip(law, U_MAX)
+    (nxt,) = (_kernel_mom_next(x[5], rate, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None
-    state.m = list(nxt)
-    return OK, np.array(u), _mask(hit)
+    state.m = nxt
+    return OK, np.array(u), mask
 
 
 def mom_estimate(state, inp):
@@ -931,7 +492,7 @@ def mom_estimate(state, inp):
     x, m = _input(inp), _state(state, "m")
     if not _finite(*x, m):
         return ENONFINITE, None
-    _, dhat = _kernel_mom(*x, m)
+    _, dhat, _ = _kernel_mom(*x, m)
     if not _finite(dhat):
         return ENONFINITE, None
     return OK, np.array(dhat)
@@ -939,133 +500,51 @@ def mom_estimate(state, inp):
 
 def _kernel_mass_matrix(theta):
     """Inertia matrix J(theta) (eq. 12, a6); 5 operations."""
-    J = [0.0] * 4
-    a0 = 0.17929666666666666
-    a1 = 0.0810084
-    a2 = theta[1]
-    a2 = _cos(a2)
-    a1 = a1 * a2
-    a0 = a0 + a1
-    J[0] = a0
-    a0 = 0.03181613333333334
-    a1 = 0.0405042
-    a1 = a1 * a2
-    a1 = a0 + a1
-    J[1] = a1
-    J[2] = a1
-    J[3] = a0
+    a3 = _cos(theta[1])
+    a9 = 0.03181613333333334 + (0.0405042 * a3)
+    J = [0.17929666666666666 + (0.0810084 * a3), a9, a9, 0.03181613333333334]
     return J
 
 
 def _kernel_bias(theta, dtheta):
     """G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 13 operations."""
-    G = [0.0] * 2
-    a0 = 0.019617647058823528
     a1 = dtheta[0]
-    a0 = a0 * a1
-    a2 = -0.0405042
-    a3 = dtheta[1]
-    a4 = a1 + a3
-    a4 = a4 * a4
-    a2 = a2 * a4
-    a4 = theta[1]
-    a4 = _sin(a4)
-    a2 = a2 * a4
-    a0 = a0 + a2
-    a2 = 0.0405042
-    a1 = a1 * a1
-    a2 = a2 * a1
-    a2 = a2 * a4
-    a0 = a0 + a2
-    G[0] = a0
-    a0 = 0.0004136
-    a0 = a0 * a3
-    a0 = a0 + a2
-    G[1] = a0
+    a4 = dtheta[1]
+    a5 = a1 + a4
+    a9 = _sin(theta[1])
+    a15 = (0.0405042 * (a1 * a1)) * a9
+    G = [((0.019617647058823528 * a1) + (((-0.0405042) * (a5 * a5)) * a9)) + a15, (0.0004136 * a4) + a15]
     return G
 
 
 def _kernel_gravity(theta):
     """Gravity torques g(theta); 0 operations."""
-    g = [0.0] * 2
-    a0 = 0.0
-    g[0] = a0
-    g[1] = a0
+    g = [0.0, 0.0]
     return g
 
 
 def _kernel_input_matrix():
     """Input matrix B = diag(gear Kt / R) (eq. 12); 0 operations."""
-    B = [0.0] * 4
-    a0 = 0.06764705882352941
-    B[0] = a0
-    a0 = 0.0
-    B[1] = a0
-    B[2] = a0
-    a0 = 0.0088
-    B[3] = a0
+    B = [0.06764705882352941, 0.0, 0.0, 0.0088]
     return B
 
 
 def _kernel_forward_dynamics(theta, dtheta, u, d):
     """Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 38 operations."""
-    ddtheta = [0.0] * 2
-    a0 = 0.03181613333333334
-    a1 = 0.17929666666666666
-    a2 = 0.0810084
     a3 = theta[1]
     a4 = _cos(a3)
-    a2 = a2 * a4
-    a1 = a1 + a2
-    a2 = a0 * a1
-    a5 = 0.0405042
-    a4 = a5 * a4
-    a4 = a0 + a4
-    a6 = a4 * a4
-    a2 = a2 - a6
-    a0 = a0 / a2
-    a6 = -0.019617647058823528
-    a7 = dtheta[0]
-    a6 = a6 * a7
-    a8 = 0.06764705882352941
-    a9 = d[0]
-    a9 = a8 * a9
-    a6 = a6 + a9
-    a9 = u[0]
-    a8 = a8 * a9
-    a6 = a6 + a8
-    a8 = -0.0405042
-    a9 = a7 * a7
-    a8 = a8 * a9
-    a3 = _sin(a3)
-    a8 = a8 * a3
-    a6 = a6 + a8
-    a9 = dtheta[1]
-    a7 = a7 + a9
-    a7 = a7 * a7
-    a5 = a5 * a7
-    a5 = a5 * a3
-    a6 = a6 + a5
-    a0 = a0 * a6
-    a4 = a4 / a2
-    a5 = -0.0004136
-    a5 = a5 * a9
-    a9 = 0.0088
-    a3 = d[1]
-    a3 = a9 * a3
-    a5 = a5 + a3
-    a3 = u[1]
-    a9 = a9 * a3
-    a5 = a5 + a9
-    a5 = a5 + a8
-    a8 = a4 * a5
-    a0 = a0 - a8
-    ddtheta[0] = a0
-    a1 = a1 / a2
-    a1 = a1 * a5
-    a4 = a4 * a6
-    a1 = a1 - a4
-    ddtheta[1] = a1
+    a6 = 0.17929666666666666 + (0.0810084 * a4)
+    a10 = 0.03181613333333334 + (0.0405042 * a4)
+    a12 = (0.03181613333333334 * a6) - (a10 * a10)
+    a15 = dtheta[0]
+    a27 = _sin(a3)
+    a28 = ((-0.0405042) * (a15 * a15)) * a27
+    a30 = dtheta[1]
+    a31 = a15 + a30
+    a35 = (((((-0.019617647058823528) * a15) + (0.06764705882352941 * d[0])) + (0.06764705882352941 * u[0])) + a28) + ((0.0405042 * (a31 * a31)) * a27)
+    a37 = a10 / a12
+    a47 = ((((-0.0004136) * a30) + (0.0088 * d[1])) + (0.0088 * u[1])) + a28
+    ddtheta = [((0.03181613333333334 / a12) * a35) - (a37 * a47), ((a6 / a12) * a47) - (a37 * a35)]
     return ddtheta
 
 

@@ -1,8 +1,9 @@
-"""WORK IN PROGRESS (issue 23, not wired into the certificate): the grouped bound of the outer
-angles (derive.control.grouped) and its branch and bound (derive.control.grouped_cells).
+"""The grouped bound of the outer angles (derive.control.grouped, issue 23) and its branch and
+bound over the inner angles' torus (derive.control.grouped_cells), for (*) of the appendix (a7).
 
 The bound must be sound (J' <= B at every state, checked at random states it never saw, for every
-vertex), and the branch and bound must prove only what N itself allows.
+vertex), its Fourier series in the inner angles must be B itself, and the branch and bound must
+prove only what N itself allows.
 """
 from __future__ import annotations
 
@@ -37,6 +38,20 @@ def test_grouped_bound_is_a_majorant_of_j_dot_at_random_states(ur5):
     gap = np.linalg.eigvalsh(B - Jd)[..., 0]
     assert gap.min() >= -1e-9
     assert gap.min() < 0.5 * np.abs(np.linalg.eigvalsh(Jd)).max()   # not vacuous
+
+
+def test_grouped_series_is_the_bound_itself(ur5):
+    """B_sigma from its Fourier series in the inner angles (the basis of sign monomials) equals B
+    from the groups at 200 random inner angles, every vertex, to rounding."""
+    d, model = ur5
+    shape = np.array([2.0, 1.0, 1.5, 1.0, 3.0, 2.5])
+    g = GroupedModel(model, (0, 1, 3), shape)
+    H, C, basis = g.series()
+    q = np.random.default_rng(8).uniform(-np.pi, np.pi, (200, 3))
+    arg = q @ H.T
+    Br = np.einsum("pk,rkab->prab", np.cos(arg), C[0]) + np.einsum("pk,rkab->prab", np.sin(arg), C[1])
+    B = g.bound(q)
+    assert np.abs(np.einsum("vr,prab->pvab", basis, Br) - B).max() <= 1e-10 * np.abs(B).max()
 
 
 def test_grouped_branch_and_bound_proves_below_and_never_above_the_supremum():

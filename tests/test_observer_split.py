@@ -123,3 +123,26 @@ def test_wider_split_proves_the_synthesised_panda_w_beyond_the_three_angle_split
     dec = c.decide(W, np.ones(7), v, 0.0)
     assert dec.verdict is cert.Verdict.PROVED
     assert search(model, W, [v] * 7).low > 0
+
+
+@pytest.mark.slow
+def test_grouped_bound_proves_the_panda_where_n_holds_and_never_above_its_supremum(panda):
+    """The grouped bound (derive.control.grouped, inner theta2..theta5 within their limits, outer
+    theta6, theta7 over every value) for W = 2 J(0)-shaped gain: its branch and bound proves the box
+    at a tenth of N's numeric supremum, where the adversarial search finds no violation either, and
+    never proves 1.05 times that supremum (a sampled state fails there)."""
+    from derive.control.adversary import search
+    from derive.control.grouped import GroupedModel
+    from derive.control.grouped_cells import decide_grouped
+
+    d, model = panda
+    c = cert.ObserverCertificate(model)
+    J0 = model.J(np.zeros((1, model.m)))[0]
+    W = 2.0 * (J0 + J0.T) / 2 + np.eye(7)
+    exact = c.speed_supremum(W, np.ones(7), exact=True)
+    g = GroupedModel(model, (0, 1, 2, 3), np.ones(7))
+    assert decide_grouped(g, W, 0.1 * exact, budget=4000).verdict is cert.Verdict.PROVED
+    assert search(model, W, [0.1 * exact] * 7).low > 0
+    q = c.samples(4096, exact=True)
+    assert c.lowest(W, np.ones(7), 1.05 * exact, 0.0, q, exact=True)[0].min() < 0
+    assert decide_grouped(g, W, 1.05 * exact, budget=2000).verdict is cert.Verdict.UNPROVEN

@@ -6,22 +6,27 @@ coordinates of S = W + W^T = L L^T (T = L^-1, S becomes I),
     G_sigma(theta) = I - v B~_sigma(theta) is positive definite for every inner theta and vertex sigma,
 
 B~ = T B T^T (B: derive.control.grouped, a trigonometric polynomial in the inner angles with
-exactly known coefficients). It is decided over the whole torus of the inner angles (the joint
-limits are not used: a larger set, so still sound), which has no boundary, and that is what
-makes the cell test cheap: let theta* minimise lambda_min(G(theta)) over the torus and u* be a
-unit eigenvector of its smallest eigenvalue. phi(theta) = u*^T G(theta) u* is at least
-lambda_min(G(theta)) everywhere and equal to it at theta*, so theta* minimises the smooth phi
-and its gradient vanishes there. For a cover of the torus by cells (centre c, half-widths r),
-the cell holding theta* (delta = c - theta*, |delta_j| <= r_j) has, by Taylor's theorem without
-the first-order term,
+exactly known coefficients), over the inner angles' limits where they span less than a turn and
+their whole turn otherwise (the outer angles: every value). The cell test needs no first-order
+term inside the domain: let theta* minimise lambda_min(G(theta)) over the domain and u* be a unit
+eigenvector of its smallest eigenvalue. phi(theta) = u*^T G(theta) u* is at least
+lambda_min(G(theta)) everywhere and equal to it at theta*, so theta* minimises the smooth phi and
+its partial derivative vanishes along every angle where theta* is not on a limit. For a cover of
+the domain by cells (centre c, half-widths r), the cell holding theta* (delta = c - theta*,
+|delta_j| <= r_j) has, by Taylor's theorem with the integral remainder,
 
-    lambda_min(G(c)) <= phi(c) = phi(theta*) + 1/2 delta^T (d^2 phi)(xi) delta
-                     <= phi(theta*) + v/2 || sum_jk r_j r_k (|d_jk B~(c)| + sum_i r_i T_ijk) ||_2,
+    lambda_min(G(c)) <= phi(c) = phi(theta*) + sum_{j in F} delta_j d_j phi(theta*)
+                                 + int_0^1 (1 - t) delta^T (d^2 phi)(theta* + t delta) delta dt
+                     <= phi(theta*) + v || sum_{j in F} r_j T1_j ||_2
+                        + v || 1/2 sum_jk r_j r_k |d_jk B~(c)| + sum_h |C~_h| a_h^2 w(a_h) ||_2,
 
-xi in the cell, |X| entrywise, T_ijk = sum_h |C~_h| |h_i h_j h_k| (entrywise, from the series: a
-bound of |d_ijk B~| valid everywhere) and ||X||_2 <= || |X| ||_2. So if on every cell
+F: the angles along which the cell touches a limit (elsewhere d_j phi(theta*) = 0), T1_j =
+sum_h |C~_h| |h_j| (entrywise: a bound of |d_j B~| everywhere), a_h = sum_j |h_j| r_j, and
+w(a) = int_0^1 s min(2, s a) ds (a / 3 for a <= 2, 1 - 4 / (3 a^2) above): the Hessian's term h
+moves by at most |C~_h| |h_j h_k| min(2, |h.(xi - c)|) between c and xi (|X| entrywise, C~_h the
+coefficient of exp(i h.theta), and ||X||_2 <= || |X| ||_2). So if on every cell
 
-    lambda_min(G(c)) - v/2 || sum_jk r_j r_k (|d_jk B~(c)| + sum_i r_i T_ijk) ||_2 > 0,
+    lambda_min(G(c)) - (the two bounds above) > 0,
 
 then phi(theta*) > 0: G is positive definite everywhere and (*) holds. Cells that fail are split
 along the angle of the largest term; a centre where G(c) itself is not positive definite ends the
@@ -31,11 +36,11 @@ the series, truncated to the frequencies that matter; the dropped terms' absolut
 
 Not used by derive.control.certificate: too slow yet. Measured on the Panda (W synthesised for
 the 1 rad/s box, inner angles theta2..theta5, outer theta6, theta7; one core): the grouped bound's
-sampled supremum on the torus is 3.67, 94 % of N's own numeric supremum 3.92 (the constant
-majorant of derive.control.split: 26 %), but the branch and bound proves 30 % of it in 18,318
-cells (72 s CPU) and 40 % in 32,460 cells (134 s). B has degree 4 in each inner angle, and the
-third-derivative bound T (its coefficients times |h|^3) outweighs the Hessian at the centres on
-cells wider than about 0.2 rad: the cells needed at 80 % are about 60,000 (sampled estimate).
+sampled supremum is 3.67, 94 % of N's own numeric supremum 3.92 (the constant majorant of
+derive.control.split: 26 %), but one decision proves 30 % of it in 6,016 cells (23 s CPU) and 40 %
+in 11,246 cells (45 s; plus 13 s for the series and the W-dependent arrays). B has degree 4 in
+each inner angle and its curvature is large against the slack: about 4 ms a cell, and cells of
+about 0.2 rad near the worst states, so 80 % would need tens of thousands of cells.
 """
 from __future__ import annotations
 
@@ -89,6 +94,11 @@ class Prepared:
         self.tail2 = np.einsum("xk,vkab->vxab", np.abs(weights[:, dropped]), mag[:, dropped])          # V x pairs x n x n
         triples = np.abs(Hf)
         self.T3 = np.einsum("ki,kj,kl,vkab->vijlab", triples, triples, triples, mag, optimize=True)    # V x m x m x m x n x n
+        self.T1 = np.einsum("kj,vkab->vjab", triples, mag)                                             # V x m x n x n
+        self.T1_size = np.sqrt((self.T1 ** 2).sum(axis=(-1, -2))).max(axis=0)                         # m
+        self.T3_size = np.sqrt((self.T3 ** 2).sum(axis=(-1, -2))).max(axis=0)                         # m x m x m
+        self.mag, self.absH = mag, triples                                                             # every term
+        self._cap: dict = {}
         iu = np.triu_indices(n)
         self.iu = iu
         cols = []
@@ -100,6 +110,17 @@ class Prepared:
         self.R = basis.shape[1]
         self.rounding = model.rounding * np.linalg.norm(T, 2) ** 2                      # V
         self.n, self.m = n, m
+
+    def cap(self, r: np.ndarray) -> np.ndarray:
+        """The Hessian's variation over a cell of half-widths r (m), integrated (module docstring):
+        sum_h |C~_h| a_h^2 w(a_h), a_h = |h|.r, w(a) = a / 3 (a <= 2), 1 - 4 / (3 a^2) (a > 2): V x n x n
+        (cached per r: the cells' half-widths are the spans over powers of two)."""
+        key = r.tobytes()
+        if key not in self._cap:
+            a = self.absH @ r
+            w = np.where(a <= 2.0, a / 3.0, 1.0 - 4.0 / (3.0 * np.maximum(a, 2.0) ** 2))
+            self._cap[key] = np.einsum("k,vkab->vab", a * a * w, self.mag) * (1 + 1e-12)
+        return self._cap[key]
 
     def evaluate(self, c: np.ndarray) -> np.ndarray:
         """B~ and its second derivatives at centres c (P x m): P x V x (1 + pairs) x n x n."""
@@ -116,7 +137,7 @@ class Prepared:
 
 def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batch: int = 256,
                    prepared: Prepared | None = None) -> Decision:
-    """Branch and bound over the inner angles' torus (module docstring): proved or unproven (the
+    """Branch and bound over the inner angles (module docstring): proved or unproven (the
     grouped bound refutes nothing). W: n x n [N m s/rad]; v: the box's scale (the box is v times
     the model's shape, rad/s); budget: cells examined at most."""
     start = time.perf_counter()
@@ -132,10 +153,16 @@ def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batc
     index = {p: i for i, p in enumerate(pairs)}
     pos = np.array([[index[(min(j, k), max(j, k))] for k in range(m)] for j in range(m)])      # m x m
     shift = v * (prep.rounding + prep.tail0)                                                      # V
+    # an inner angle whose limits span less than a turn ranges over them (its faces need the first-order term)
+    bounded = np.array([not model.full.periodic[k] and span[1] - span[0] < 2 * math.pi
+                        for k, span in zip(model.inner, model.spans)], dtype=bool)
+    lo = np.array([span[0] if b else -math.pi for span, b in zip(model.spans, bounded)])
+    hi = np.array([span[1] if b else math.pi for span, b in zip(model.spans, bounded)])
     pieces = 4
-    axes = [(-math.pi + (2 * np.arange(pieces) + 1) * math.pi / pieces) for _ in range(m)]
+    axes = [lo[j] + (2 * np.arange(pieces) + 1) * (hi[j] - lo[j]) / (2 * pieces) for j in range(m)]
     centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
-    halves = np.full(centres.shape, math.pi / pieces)
+    halves = np.broadcast_to((hi - lo) / (2 * pieces), centres.shape).copy()
+    edge = 1e-9 * (1 + np.abs(lo) + np.abs(hi))
     cells, margin, low = 0, math.inf, math.inf
     eye = np.eye(n)
     while centres.shape[0]:
@@ -148,12 +175,13 @@ def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batc
         low = min(low, float(lam.min()))
         if lam.min() <= tol:
             return Decision(Verdict.UNPROVEN, cells, None, None, low, time.perf_counter() - start)
-        curv = np.abs(E[:, :, 1:]) + prep.tail2[None]                                      # P x V x pairs x n x n
-        third = np.einsum("pi,vijkab->pvjkab", (2.0 / 3.0) * h, prep.T3)                                 # P x V x m x m x n x n
-        full = curv[:, :, pos] + third                                                      # P x V x m x m x n x n
-        weight = np.einsum("pj,pk->pjk", h, h)
-        quad = _spectral_norm(np.einsum("pjk,pvjkab->pvab", weight, full))                  # P x V
-        slack = (lam - 0.5 * v * quad).min(axis=1)
+        curv = (np.abs(E[:, :, 1:]) + prep.tail2[None])[:, :, pos]                       # P x V x m x m x n x n
+        quad = 0.5 * np.einsum("pj,pk,pvjkab->pvab", h, h, curv)
+        quad = _spectral_norm(quad + np.stack([prep.cap(r) for r in h]))                   # P x V
+        # at a face: the minimiser may sit on it, its gradient there is at most T1 (first order)
+        face = bounded[None] & ((c - h <= lo + edge) | (c + h >= hi - edge))                      # P x m
+        grad = _spectral_norm(np.einsum("pj,vjab->pvab", h * face, prep.T1)) if face.any() else 0.0
+        slack = (lam - v * quad - v * grad).min(axis=1)
         ok = slack > tol
         if ok.any():
             margin = min(margin, float(slack[ok].min()))
@@ -162,8 +190,10 @@ def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batc
             if cells + centres.shape[0] + 2 * int(todo.sum()) > budget:
                 return Decision(Verdict.UNPROVEN, cells, None, None, low, time.perf_counter() - start)
             cs, hs = c[todo], h[todo].copy()
-            size = np.sqrt((full[todo] ** 2).sum(axis=(-1, -2))).max(axis=1)               # P' x m x m
-            axis = np.argmax(hs * np.einsum("pjk,pk->pj", size, hs), axis=1)
+            size = np.sqrt((curv[todo] ** 2).sum(axis=(-1, -2))).max(axis=1) + \
+                (2.0 / 3.0) * np.einsum("pi,ijk->pjk", hs, prep.T3_size)                          # P' x m x m
+            pull = np.einsum("pjk,pk->pj", size, hs) + 2.0 * face[todo] * prep.T1_size[None]
+            axis = np.argmax(hs * pull, axis=1)
             rows = np.arange(cs.shape[0])
             hs[rows, axis] /= 2
             left, right = cs.copy(), cs.copy()

@@ -96,7 +96,7 @@ def test_wider_split_is_opt_in_and_refuses_a_false_w(panda):
     sup = c.speed_supremum(W, np.ones(7), exact=True)
     q = c.samples(4096, exact=True)
     assert c.lowest(W, np.ones(7), 1.3 * sup, 0.0, q, exact=True)[0].min() < 0   # the claim is false
-    dec = c.decide(W, np.ones(7), 1.3 * sup, 0.0, budget=2000)
+    dec = c.decide(W, np.ones(7), 1.3 * sup, 0.0, budget=500)
     assert dec.verdict is not cert.Verdict.PROVED
     if dec.verdict is cert.Verdict.REFUTED:
         theta, speed = (np.array(x)[None] for x in dec.point)

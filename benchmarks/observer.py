@@ -31,7 +31,9 @@ def _random_check(d, W, box: float, count: int = 10_000) -> float:
     return float(np.linalg.eigvalsh(W + W.T - Jd)[:, 0].min())
 
 
-TIGHT = (("planar_3link", 5.0, "chen"), ("ur5", 1.0, "full"), ("panda", 1.0, "full"))   # arm, box [rad/s], W
+# arm, box [rad/s], W, the wider split as well (ObserverCertificate(wider=True): four angles branched)
+TIGHT = (("planar_3link", 5.0, "chen", False), ("ur5", 1.0, "full", False), ("panda", 1.0, "full", False),
+         ("panda", 1.0, "full", True))
 
 
 def _tightness() -> tuple[str, list[Goal]]:
@@ -48,14 +50,16 @@ def _tightness() -> tuple[str, list[Goal]]:
     from derive.model.spec import load_arm
 
     urdf = Path(__file__).resolve().parent.parent / "tests" / "data" / "urdf"
-    rows, goals = [], []
-    for name, box, structure in TIGHT:
-        d = derive.derive(load_arm(name if name == "planar_3link" else urdf / f"{name}.toml"))
-        model = cert.inertia_model(d)
+    rows, goals, best, gains = [], [], None, {}
+    for name, box, structure, wider in TIGHT:
+        if (name, box, structure) not in gains:
+            d = derive.derive(load_arm(name if name == "planar_3link" else urdf / f"{name}.toml"))
+            model = cert.inertia_model(d)
+            syn = synthesise(model, [box] * d.n, structure=structure)
+            gains[(name, box, structure)] = (d, model, [[float(x) for x in row] for row in syn.W])
+        d, model, W = gains[(name, box, structure)]
         shape = [1.0] * d.n
-        syn = synthesise(model, [box] * d.n, structure=structure)
-        W = [[float(x) for x in row] for row in syn.W]
-        c = cert.ObserverCertificate(model, shape)
+        c = cert.ObserverCertificate(model, shape, wider=wider)
         start = time.process_time()
         proved, dec = cert.largest_proved_speed(c, W, shape)
         t_proved = time.process_time() - start
@@ -65,13 +69,16 @@ def _tightness() -> tuple[str, list[Goal]]:
             raise AssertionError(f"{name}: the adversarial search found lambda_min(N) = {found.low} at theta = "
                                  f"{found.theta}, theta' = {found.speed} inside the proved box {proved}")
         ratio = proved / sup
-        rows.append([name, d.n, structure, f"{box:g}", f"{proved:.4g}", f"{sup:.4g}", f"{100 * ratio:.1f} %",
-                     f"{t_proved:.1f} s", dec.cells if dec is not None else 0, f"{found.sampled:.3g}",
-                     f"{found.low:.3g}"])
-        if name == "panda":
-            goals.append(Goal("Panda certificate (full W, 1 rad/s box): largest box scale proved >= 80 % of the "
-                              "numeric supremum for the same W, proved under 60 s CPU", ratio >= 0.8 and t_proved < 60,
-                              f"{proved:.4g} vs {sup:.4g}: {100 * ratio:.1f} %, {t_proved:.1f} s CPU"))
+        rows.append([name + (" (wider split)" if wider else ""), d.n, structure, f"{box:g}", f"{proved:.4g}",
+                     f"{sup:.4g}", f"{100 * ratio:.1f} %", f"{t_proved:.1f} s", dec.cells if dec is not None else 0,
+                     f"{found.sampled:.3g}", f"{found.low:.3g}"])
+        if name == "panda" and (best is None or ratio > best[0]):
+            best = (ratio, proved, sup, t_proved, wider)
+    ratio, proved, sup, t_proved, wider = best
+    goals.append(Goal("Panda certificate (full W, 1 rad/s box): largest box scale proved >= 80 % of the "
+                      "numeric supremum for the same W, proved under 60 s CPU", ratio >= 0.8 and t_proved < 60,
+                      f"{proved:.4g} vs {sup:.4g}: {100 * ratio:.1f} %, {t_proved:.1f} s CPU"
+                      + (" (wider split)" if wider else "")))
     return table(("arm", "n", "W", "synthesis box [rad/s]", "largest box proved", "numeric supremum", "ratio",
                   "CPU to prove", "cells", "min eigenvalue, 10,000 random states at the proved box",
                   "adversarial search (L-BFGS-B from the worst)"), rows), goals

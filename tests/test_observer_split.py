@@ -81,3 +81,68 @@ def test_synthesised_w_for_the_7_joint_panda_is_proved_and_holds_at_10000_random
     Jd = (Jd + Jd.transpose(0, 2, 1)) / 2
     assert np.linalg.eigvalsh(W + W.T - Jd)[:, 0].min() > 0
     assert np.linalg.eigvalsh(-Jd)[:, 0].min() < 0   # W is needed: J' alone fails
+
+
+def test_wider_split_is_opt_in_and_refuses_a_false_w(panda):
+    """ObserverCertificate(wider=True) adds the four-angle split (one outer angle fewer) and tries
+    it when the three-angle one is unproven; it never proves a W on a box where (*) of the appendix
+    (a7) fails: W = Jbar-shaped gain at 1.3 times the numeric supremum of its box, where a sampled
+    state has lambda_min(N) < 0 (the verdict is refuted with that state, or unproven)."""
+    d, model = panda
+    assert cert.ObserverCertificate(model).wider is None
+    c = cert.ObserverCertificate(model, wider=True)
+    assert c.wider is not None and len(c.wider.inner) == 4 and c.wider.wider is None
+    W = 2.0 * np.eye(7)
+    sup = c.speed_supremum(W, np.ones(7), exact=True)
+    q = c.samples(4096, exact=True)
+    assert c.lowest(W, np.ones(7), 1.3 * sup, 0.0, q, exact=True)[0].min() < 0   # the claim is false
+    dec = c.decide(W, np.ones(7), 1.3 * sup, 0.0, budget=500)
+    assert dec.verdict is not cert.Verdict.PROVED
+    if dec.verdict is cert.Verdict.REFUTED:
+        theta, speed = (np.array(x)[None] for x in dec.point)
+        N = 2 * W - np.einsum("pk,pkab->pab", speed, model.dJ(theta))
+        assert np.linalg.eigvalsh(N)[0, 0] <= 0
+
+
+@pytest.mark.slow
+def test_wider_split_proves_the_synthesised_panda_w_beyond_the_three_angle_split_and_the_adversary_agrees(panda):
+    """Issue 23: the Panda's synthesised W (full, 1 rad/s box): the wider split proves a box the
+    three-angle split cannot (30 % of the numeric supremum of N itself; the three-angle split's own
+    supremum is about 26 %), and the adversarial search (L-BFGS-B from the worst of 10,000 random
+    states) finds no state inside that box where lambda_min(N) <= 0."""
+    from derive.control.adversary import search
+
+    d, model = panda
+    syn = synthesise(model, [1.0] * 7, structure="full")
+    W = np.array([[float(x) for x in row] for row in syn.W])
+    narrow = cert.ObserverCertificate(model, np.ones(7))
+    c = cert.ObserverCertificate(model, np.ones(7), wider=True)
+    exact = c.speed_supremum(W, np.ones(7), exact=True)
+    v = 0.3 * exact
+    assert narrow.speed_supremum(W, np.ones(7)) < v
+    dec = c.decide(W, np.ones(7), v, 0.0)
+    assert dec.verdict is cert.Verdict.PROVED
+    assert search(model, W, [v] * 7).low > 0
+
+
+@pytest.mark.slow
+def test_grouped_bound_proves_the_panda_where_n_holds_and_never_above_its_supremum(panda):
+    """The grouped bound (derive.control.grouped, inner theta2..theta5 within their limits, outer
+    theta6, theta7 over every value) for W = 2 J(0)-shaped gain: its branch and bound proves the box
+    at a tenth of N's numeric supremum, where the adversarial search finds no violation either, and
+    never proves 1.05 times that supremum (a sampled state fails there)."""
+    from derive.control.adversary import search
+    from derive.control.grouped import GroupedModel
+    from derive.control.grouped_cells import decide_grouped
+
+    d, model = panda
+    c = cert.ObserverCertificate(model)
+    J0 = model.J(np.zeros((1, model.m)))[0]
+    W = 2.0 * (J0 + J0.T) / 2 + np.eye(7)
+    exact = c.speed_supremum(W, np.ones(7), exact=True)
+    g = GroupedModel(model, (0, 1, 2, 3), np.ones(7))
+    assert decide_grouped(g, W, 0.1 * exact, budget=4000).verdict is cert.Verdict.PROVED
+    assert search(model, W, [0.1 * exact] * 7).low > 0
+    q = c.samples(4096, exact=True)
+    assert c.lowest(W, np.ones(7), 1.05 * exact, 0.0, q, exact=True)[0].min() < 0
+    assert decide_grouped(g, W, 1.05 * exact, budget=2000).verdict is cert.Verdict.UNPROVEN

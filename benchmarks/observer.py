@@ -20,7 +20,7 @@ def _random_check(d, W, box: float, count: int = 10_000) -> float:
     automatic differentiation of the derived J (independent of the branch and bound and the split)."""
     import numpy as np
 
-    from derive.control.certificate import inertia_model
+    from derive.control.cert_report import inertia_model
 
     model = inertia_model(d)
     idx = [c.index for c in model.deps]
@@ -45,6 +45,7 @@ def _tightness() -> tuple[str, list[Goal]]:
 
     import derive
     from derive.control import certificate as cert
+    from derive.control import cert_report
     from derive.control.adversary import search
     from derive.control.synthesis import synthesise
     from derive.model.spec import load_arm
@@ -54,14 +55,14 @@ def _tightness() -> tuple[str, list[Goal]]:
     for name, box, structure, wider in TIGHT:
         if (name, box, structure) not in gains:
             d = derive.derive(load_arm(name if name == "planar_3link" else urdf / f"{name}.toml"))
-            model = cert.inertia_model(d)
+            model = cert_report.inertia_model(d)
             syn = synthesise(model, [box] * d.n, structure=structure)
             gains[(name, box, structure)] = (d, model, [[float(x) for x in row] for row in syn.W])
         d, model, W = gains[(name, box, structure)]
         shape = [1.0] * d.n
         c = cert.ObserverCertificate(model, shape, wider=wider)
         start = time.process_time()
-        proved, dec = cert.largest_proved_speed(c, W, shape)
+        proved, dec = cert_report.largest_proved_speed(c, W, shape)
         t_proved = time.process_time() - start
         sup = c.speed_supremum(W, shape, 0.0, exact=True)
         found = search(model, W, [proved] * d.n)
@@ -86,7 +87,7 @@ def _tightness() -> tuple[str, list[Goal]]:
 
 def run() -> Section:
     import derive
-    from derive.control import certificate as cert
+    from derive.control import cert_report
     from derive.control.sampling import limits
     from derive.control.synthesis import synthesise
     from derive.model.examples import planar_chain
@@ -95,7 +96,7 @@ def run() -> Section:
     for name in (None, "planar_3link"):
         d = derive.derive(derive.load_arm(name))
         start = time.perf_counter()
-        r = cert.report(d)
+        r = cert_report.report(d)
         t_cert = time.perf_counter() - start
         start = time.perf_counter()
         lim = limits(d)
@@ -117,7 +118,7 @@ def run() -> Section:
         n = d.n if isinstance(n, int) else "panda"
         t_derive = time.perf_counter() - start
         start = time.perf_counter()
-        model = cert.inertia_model(d)
+        model = cert_report.inertia_model(d)
         syn = synthesise(model, [box] * d.n, structure="chen" if isinstance(n, int) else "full")
         t_syn = time.perf_counter() - start
         W = [[float(x) for x in row] for row in syn.W]

@@ -20,6 +20,7 @@ from derive.cli import check as check_cli
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
 from derive.control import certificate as cert
+from derive.control import cert_report
 from derive.control.synthesis import synthesise
 from derive.errors import DerivationError
 from derive.model.examples import planar_chain_dict
@@ -53,12 +54,12 @@ def _random_states(d, W, box, count: int = 10_000, seed: int = 7) -> float:
 
 # -- item 1: the certificate -----------------------------------------------------------------------------
 def test_theorem2_certificate_reproduces_the_speed_bound_w1_over_X_for_the_default_arm(paper):
-    r = cert.report(paper)
+    r = cert_report.report(paper)
     bound = float(paper.speed_bound)                          # w1 / X of (26)
     assert abs(r.speed_sup - bound) < 1e-3 * bound           # the exact region: min(w1, 4 w2 - w1)/X = w1/X here
     assert 0.97 * bound <= r.speed <= bound
     assert r.speed_decision.verdict is cert.Verdict.PROVED
-    c = cert.ObserverCertificate(cert.inertia_model(paper))
+    c = cert.ObserverCertificate(cert_report.inertia_model(paper))
     W = np.array(paper.W.tolist(), dtype=float)
     assert c.decide(W, np.ones(2), 1.01 * bound).verdict is cert.Verdict.REFUTED
 
@@ -66,7 +67,7 @@ def test_theorem2_certificate_reproduces_the_speed_bound_w1_over_X_for_the_defau
 def test_symbolic_derivative_bounds_hold_at_random_angles():
     """The Fourier bounds of |d^2 J| (used by the branch and bound) exceed the true values."""
     d = derivation("planar_3link")
-    model = cert.inertia_model(d)
+    model = cert_report.inertia_model(d)
     q = np.random.default_rng(3).uniform(-np.pi, np.pi, (2000, model.m))
     d2 = np.abs(model.d2J(q)).max(axis=0)
     assert np.all(d2 <= model.second + 1e-12)
@@ -75,7 +76,7 @@ def test_symbolic_derivative_bounds_hold_at_random_angles():
 
 def test_planar_3link_certified_speed_box_is_between_6_and_10_rad_s():
     d = derivation("planar_3link")
-    r = cert.report(d)
+    r = cert_report.report(d)
     assert 6.0 < r.speed <= r.speed_sup < 10.0
     assert r.speed_decision.verdict is cert.Verdict.PROVED
     assert _random_states(d, d.W, [r.speed] * 3, count=3000) > 0
@@ -127,7 +128,7 @@ def test_exact_region_counterexample_point_is_outside_26_and_inside_the_region(p
     X = paper.lumped["X"]
     assert w2 < w1 and w1 > X * top and 4 * w2 > w1 + X * top
     # the closed form against the certificate, on both sides of the region's edge 4 w2 = w1 + X theta2m
-    c = cert.ObserverCertificate(cert.inertia_model(paper))
+    c = cert.ObserverCertificate(cert_report.inertia_model(paper))
     W = np.array([[1.0, 0.0], [1.0, 0.5]])
     edge = float(min(w1, 4 * w2 - w1) / X)
     assert c.decide(W, np.ones(2), 0.98 * edge).verdict is cert.Verdict.PROVED
@@ -143,7 +144,7 @@ def test_w2_below_w1_inside_the_exact_region_is_certified_and_the_observer_conve
     assert proofs_cert.check_certificate(d).status is Status.PROVED
     assert proofs_cert.check_exact_region(d).status is Status.PROVED
     assert proofs_arm.check_theorem2_arm(d).status is Status.NOT_APPLICABLE
-    beta = cert.report(d).rate
+    beta = cert_report.report(d).rate
     assert beta > 1.0
     write_tree(tmp_path / "g", generate_files(d, b""))
     spec = importlib.util.spec_from_file_location("g2", tmp_path / "g" / "python" / f"{arm.name}.py")
@@ -198,7 +199,7 @@ def test_w_auto_certifies_the_stated_box_of_planar_3link():
 def test_synthesis_reaches_the_exact_region_boundary_for_two_links(paper):
     """For two links the smallest ||W||_2 of Chen's structure sits at the exact region's edge:
     w1 -> X theta2m and 4 w2 -> w1 + X theta2m (up to the program's headroom)."""
-    syn = synthesise(cert.inertia_model(paper), [10.0, 10.0])
+    syn = synthesise(cert_report.inertia_model(paper), [10.0, 10.0])
     a = float(paper.lumped["X"]) * 10.0
     w1, w2 = float(syn.W[0][0]), float(syn.W[1][1])
     assert a < w1 < 1.1 * a and w1 + a < 4 * w2 < 1.1 * (w1 + a)
@@ -235,7 +236,7 @@ def test_synthesised_w_for_a_planar_4_link_chain_holds_at_10000_random_states():
     arm = arm_from_dict(data, "<chain4>")
     d = derive.derive(arm)
     box = [2.0] * 4
-    syn = synthesise(cert.inertia_model(d), box, budget=4000)
+    syn = synthesise(cert_report.inertia_model(d), box, budget=4000)
     W = np.array([[float(x) for x in row] for row in syn.W])
     assert syn.decision.verdict in (cert.Verdict.PROVED, cert.Verdict.UNPROVEN)   # budget-bound in this test
     assert _random_states(d, W, box, count=10_000) > 0
@@ -243,7 +244,7 @@ def test_synthesised_w_for_a_planar_4_link_chain_holds_at_10000_random_states():
 
 def test_synthesis_rejects_an_unknown_structure(paper):
     with pytest.raises(DerivationError, match="structure 'diagonal' is not one of"):
-        synthesise(cert.inertia_model(paper), [1.0, 1.0], structure="diagonal")
+        synthesise(cert_report.inertia_model(paper), [1.0, 1.0], structure="diagonal")
 
 
 def test_check_lists_the_new_obligations():
@@ -288,7 +289,7 @@ def test_synthesised_w_for_the_6_joint_ur5_is_proved_and_holds_at_10000_random_s
     arm = vendored_arm("ur5")
     d = derive.derive(arm)
     box = [1.0] * 6
-    syn = synthesise(cert.inertia_model(d), box, structure="full")
+    syn = synthesise(cert_report.inertia_model(d), box, structure="full")
     assert syn.decision.verdict is cert.Verdict.PROVED   # by the split certificate (5 angles: 3 inner)
     W = np.array([[float(x) for x in row] for row in syn.W])
     f = casadi_function(d.dynamics).map(10_000)
@@ -353,7 +354,7 @@ def test_prismatic_coordinates_are_certified_over_their_travel(name):
     the bounds hold at random states, and the certificate proves what the random states do not refute."""
     path = CASES / "polar.toml" if name == "polar" else URDF / "synthetic.toml"
     d = derive.derive(derive.load_arm(path))
-    model = cert.inertia_model(d)
+    model = cert_report.inertia_model(d)
     assert any(not c.angle for c in model.deps) and model.fourier is None
     rng = np.random.default_rng(3)
     lo = np.array([s[0] for s in model.spans])
@@ -363,13 +364,13 @@ def test_prismatic_coordinates_are_certified_over_their_travel(name):
     assert np.all(d2 <= model.second + 1e-12) and np.max(d2 / np.maximum(model.second, 1e-300)) > 0.3
     out = proofs_cert.check_certificate(d)
     assert out.status is Status.PROVED
-    r = cert.report(d)
+    r = cert_report.report(d)
     assert 0.9 * r.speed_sup <= r.speed <= r.speed_sup
 
 
 def test_fourth_derivative_bounds_hold_at_random_angles(paper):
     """The second-order remainder of the branch and bound rests on |d^4 J| bounds from J's series."""
-    model = cert.inertia_model(derivation("planar_3link"))
+    model = cert_report.inertia_model(derivation("planar_3link"))
     rng = np.random.default_rng(5)
     q = rng.uniform(-np.pi, np.pi, (400, model.m))
     h = 1e-4
@@ -388,9 +389,9 @@ def test_adversarial_search_finds_no_violation_inside_the_proved_box_of_planar_3
     from derive.control.adversary import search
 
     d = derive.derive(derive.load_arm("planar_3link"))
-    r = cert.report(d)
+    r = cert_report.report(d)
     assert r.speed_decision.verdict is cert.Verdict.PROVED
-    model = cert.inertia_model(d)
+    model = cert_report.inertia_model(d)
     inside = search(model, r.W, [r.speed * s for s in r.shape])
     assert inside.low > 0 and inside.low <= inside.sampled
     above = search(model, r.W, [1.05 * r.speed_sup * s for s in r.shape])

@@ -12,6 +12,7 @@ import pytest
 
 import derive
 from derive.control import certificate as cert
+from derive.control import cert_report
 from derive.control.grouped import GroupedModel
 from derive.control.grouped_cells import decide_grouped
 
@@ -21,7 +22,7 @@ from .test_spatial_dynamics import vendored_arm
 @pytest.fixture(scope="module")
 def ur5():
     d = derive.derive(vendored_arm("ur5"))
-    return d, cert.inertia_model(d)
+    return d, cert_report.inertia_model(d)
 
 
 def test_grouped_bound_is_a_majorant_of_j_dot_at_random_states(ur5):
@@ -58,7 +59,7 @@ def test_grouped_branch_and_bound_proves_below_and_never_above_the_supremum():
     """planar_3link (one inner, one outer angle), W = Chen's of the paper's default: proved at half
     the grouped bound's sampled supremum; never proved above N's own numeric supremum."""
     d = derive.derive(derive.load_arm("planar_3link"))
-    model = cert.inertia_model(d)
+    model = cert_report.inertia_model(d)
     W = np.array(d.W.tolist(), dtype=float)
     g = GroupedModel(model, (0,), np.ones(d.n))
     sup = g.supremum(W, 1024)

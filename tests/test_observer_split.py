@@ -13,6 +13,7 @@ import pytest
 
 import derive
 from derive.control import certificate as cert
+from derive.control import cert_report
 from derive.control.synthesis import synthesise
 
 from .test_spatial_dynamics import casadi_function, vendored_arm
@@ -21,12 +22,12 @@ from .test_spatial_dynamics import casadi_function, vendored_arm
 @pytest.fixture(scope="module")
 def panda():
     d = derive.derive(vendored_arm("panda"))
-    return d, cert.inertia_model(d)
+    return d, cert_report.inertia_model(d)
 
 
 def test_split_is_used_past_four_angles_and_the_ur5_spans_fold_to_a_turn():
     d = derive.derive(vendored_arm("ur5"))
-    model = cert.inertia_model(d)
+    model = cert_report.inertia_model(d)
     assert model.m == 5 and model.fourier is not None
     assert all(p and s == (-np.pi, np.pi) for p, s in zip(model.periodic, model.spans))   # limits +-2 pi: J repeats
     c = cert.ObserverCertificate(model)

@@ -51,7 +51,7 @@ def gain_unit(arm) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from derive.control.certificate import inertia_model
+    from derive.control.cert_report import inertia_model
     from derive.control.pipeline import derive
     from derive.control.synthesis import synthesise
     from derive.cli import load_cli_arm

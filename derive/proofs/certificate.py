@@ -26,6 +26,8 @@ import numpy as np
 import sympy as sp
 
 from derive.control import certificate as cert
+
+from derive.control import cert_report
 from derive.dynamics.planar import a6_form
 from derive.proofs.core import Counterexample, Kind, Obligation, Outcome, Status, combine, not_applicable, positive
 
@@ -49,7 +51,7 @@ def _box(shape, v: float) -> str:
 
 def check_certificate(d: Derivation) -> Outcome:
     """The certificate (*) on the stated box and rate; the largest certified box and rate."""
-    r = cert.report(d)
+    r = cert_report.report(d)
     if r.unbounded:
         return Outcome(Status.UNPROVEN, f"J depends on the prismatic coordinates {', '.join(r.unbounded)}, which have "
                        "no limits: the certificate needs their ranges (give the joints limits)")
@@ -69,9 +71,10 @@ def check_certificate(d: Derivation) -> Outcome:
         need = float(d.arm.controller.observer_rate)
         if dec.verdict is cert.Verdict.REFUTED:
             theta, dtheta = dec.point
-            pt = tuple((sp.Symbol(str(c.symbol)), sp.Float(x, 6)) for c, x in zip(cert.inertia_model(d).deps, theta))
+            deps = cert_report.inertia_model(d).deps
+            pt = tuple((sp.Symbol(str(c.symbol)), sp.Float(x, 6)) for c, x in zip(deps, theta))
             pt += tuple((sp.Symbol(f"dtheta{c.index + 1}"), sp.Float(x, 6))
-                        for c, x in zip(cert.inertia_model(d).deps, dtheta))
+                        for c, x in zip(deps, dtheta))
             cex = Counterexample(pt, sp.Matrix([dec.low]), sp.Matrix([0]), "lambda_min(W + W^T - J')", "0")
             return Outcome(Status.REFUTED, f"controller.max_joint_speed {_box(shape, 1.0)} is not covered by the observer "
                            f"certificate: W + W^T - J'(theta, theta') has eigenvalue {dec.low:.4g} < 0 at a vertex of the "
@@ -99,7 +102,7 @@ def check_certificate(d: Derivation) -> Outcome:
                    summary=summary)
 
 
-def _constant(d: Derivation, r: cert.Report) -> Outcome:
+def _constant(d: Derivation, r: cert_report.Report) -> Outcome:
     """J depends on no joint coordinate (one joint, or J constant): J' = 0, so (*) is the single matrix
     inequality W + W^T - 2 beta J > 0, the same at every theta and speed: decided exactly."""
     W = [list(map(_fmt, row)) for row in r.W]
@@ -192,7 +195,7 @@ def check_exact_region(d: Derivation) -> Outcome:
     if Xa > 0:
         p1, p2, top = counterexample_point(d)
         inside = p1 > Xa * top and 4 * p2 > p1 + Xa * top
-        dec = cert.ObserverCertificate(cert.inertia_model(d)).decide(
+        dec = cert.ObserverCertificate(cert_report.inertia_model(d)).decide(
             np.array([[1.0, 0.0], [1.0, 0.5]]), np.array([float(top), float(top)]), 1.0, 0.0)
         ok = inside and not (p2 >= p1) and dec.verdict is cert.Verdict.PROVED
         parts.append(Outcome(Status.PROVED if ok else Status.REFUTED,

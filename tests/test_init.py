@@ -251,3 +251,48 @@ def test_init_sample_time_fits_the_sampled_loop_when_a_joints_viscous_damping_bi
         assert all(f"{form.upper()} {lim.limit * 1e3:.3g} ms" in line for form, lim in forms.items()), line
     capsys.readouterr()
     assert main(["simulate", str(path), "--duration", "1", "--out", str(tmp_path / "sim")]) == 0
+
+
+def test_init_starts_the_experiment_where_the_effort_limits_hold_and_scales_its_loads_to_the_arm(tmp_path, capsys):
+    """Issue 20 (Baxter's kind: its zero pose needs 56 N m on a 50 N m shoulder, so every form sagged; and the
+    SO-100's kind: the paper's 0.1 N m disturbance is 1e4 rad/s^2 on its 20 g jaw). The double pendulum with
+    0.3 N m effort limits: upright it holds, but the 90 deg pulses of section 5.2 need about 0.5 N m. derive init
+    writes a start pose within the joint ranges, reference_start = "measured" and an amplitude (>= 15 deg) such
+    that the gravity torques (eq. 12) stay within 0.8 of the limits all along the experiment, and scales the
+    disturbance and Coulomb friction to at most 5 rad/s^2 times each joint's inertia there; the file tracks."""
+    import json
+    import math
+    import re
+
+    from derive.cli.init_numbers import DISTURBANCE_ACCEL, POSE_LOAD
+    from derive.control.grid import mass_function
+    from derive.dynamics.program import lambdify
+    from derive.model.simspec import default_settings
+
+    urdf = _copy(tmp_path, "double_pendulum")
+    urdf.write_text(urdf.read_text().replace('<limit lower="0" upper="0" effort="0" velocity="0" />',
+                                             '<limit lower="-3.1" upper="3.1" effort="0.3" velocity="3" />'))
+    assert main(["init", str(urdf)]) == 0
+    path = urdf.with_suffix(".toml")
+    arm = derive.load_arm(path)
+    s = arm.simulation
+    assert s.reference_start == "measured" and 15 <= s.amplitude_deg <= 90
+    theta0, amp = np.array(s.initial_theta), math.radians(s.amplitude_deg)
+    assert np.all(np.abs(theta0) <= 3.1) and np.all(theta0 + amp <= 3.1)
+    d = derive.derive(arm)
+    g = lambdify(list(d.dynamics.sym.theta), [x.xreplace(dict(d.dynamics.values)) for x in d.dynamics.gravity])
+    for a in np.linspace(0, 1, 11):          # both pulses up, one, none, and the moves between
+        for mask in ((1, 1), (1, 0), (0, 1)):
+            load = np.abs(np.array(g(*(theta0 + a * amp * np.array(mask))), dtype=float)) / 0.3
+            assert load.max() <= POSE_LOAD + 1e-3, (a, mask, load)
+    J = np.diag(mass_function(d)(theta0[None])[0])
+    want = [float(f"{min(x, DISTURBANCE_ACCEL * j):.3g}") for x, j in zip(default_settings(2).disturbance, J)]
+    assert list(s.disturbance) == want and want != list(default_settings(2).disturbance)
+    assert re.search(r"^coulomb_friction = ", path.read_text(), re.M)
+    capsys.readouterr()
+    assert main(["simulate", str(path), "--out", str(tmp_path / "sim"), "--json", str(tmp_path / "m.json")]) == 0
+    assert "leaves its range" not in capsys.readouterr().err
+    links = {f: c["links"] for f, c in json.loads((tmp_path / "m.json").read_text())["controllers"].items()}
+    for form in ("dobc", "npid"):
+        assert max(x["rms_error"] for x in links[form]) < 0.02                # 0.0039 measured
+        assert 5 * max(x["rms_error"] for x in links[form]) < max(x["rms_error"] for x in links["mpc"])

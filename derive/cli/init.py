@@ -155,7 +155,7 @@ def _description(name: str, urdf_name: str, base: str, tip: str) -> str:
 
 def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
                  repaired: tuple[str, ...] = (), gain=None, notes: tuple[str, ...] = (),
-                 substeps: int | None = None) -> str:
+                 substeps: int | None = None, pose=None, loads=None) -> str:
     """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
     links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
     derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
@@ -240,6 +240,22 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         "limit derive show",
         "# and derive check state for this file (the sampled loop over the speed box, 0.9 of the largest stable):",
     ] + _stated_lines(gain.stated)
+    if pose is not None:
+        theta0, amp = pose
+        lines += [
+            f"initial_theta = [{', '.join(_g(x) for x in theta0)}]  # rad (m prismatic): the start pose, chosen so that",
+            "# the experiment's gravity torques stay within 0.8 of the effort limits and every pulse inside its",
+            "# joint's range (the zero pose did not: derive.cli.init_numbers.starter_pose)",
+            'reference_start = "measured"    # y_d starts at the start pose; the pulses are offsets from it',
+            f"amplitude_deg = {amp:g}" + " " * max(1, 18 - len(f"{amp:g}")) + "# deg: the pulses' height, "
+            "short of each joint's upper limit",
+        ]
+    for key, values in (loads or {}).items():
+        lines += [
+            f"{key} = [{', '.join(_g(x) for x in values)}]  # N m (N prismatic): the default's, at most 5 rad/s^2",
+            "# times each joint's inertia at the start pose (a light joint is not thrown by a load of the paper's",
+            "# arm's size: derive.cli.init_numbers.starter_loads)",
+        ]
     if substeps is not None:
         lines += [
             f"substeps = {substeps}" + " " * max(1, 20 - len(str(substeps)))
@@ -331,7 +347,7 @@ def run(args) -> int:
                           "the URDF's robot name" if robot.name else "the URDF file's name")
     notes = (renamed,) if renamed else ()
     draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
-    from derive.cli.init_numbers import choose_gain, rk4_substeps, stated_limits
+    from derive.cli.init_numbers import choose_gain, rk4_substeps, starter_loads, starter_pose, stated_limits
 
     gain, _ = choose_gain(draft, out, found.chain)
     text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
@@ -339,11 +355,11 @@ def run(args) -> int:
 
     stated, d = stated_limits(text, out)
     gain = fit_to_limits(gain, stated)
-    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
-    substeps = rk4_substeps(d, gain.sample_time)
-    if substeps > SimSettings.substeps:   # the default the file leaves unsaid
-        text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes,
-                            substeps)
+    pose = starter_pose(d)
+    loads = starter_loads(d, pose[0] if pose else None)
+    substeps = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
+    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes,
+                        substeps if substeps > SimSettings.substeps else None, pose, loads)   # defaults unsaid
     _write_new(out, text)
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)

@@ -3,6 +3,7 @@ of the same inputs prints the same bytes without deriving (no SymPy imported); a
 URDF or option is a miss; --no-cache keeps nothing; a refusal is never kept; a bad entry is ignored."""
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -69,4 +70,4 @@ def test_a_refusal_is_never_kept_and_a_bad_entry_is_rebuilt(tmp_path, arm, capsy
     (entry,) = (tmp_path / "cache" / "show").glob("*.json")
     entry.write_text("{not json")
     assert main(["show", str(arm)]) == 0 and capsys.readouterr().out == first
-    assert entry.read_text().startswith("{\"format\"")
+    assert json.loads(entry.read_text())["stdout"] == first

@@ -57,5 +57,6 @@ def load(key: str) -> tuple[str, str] | None:
 
 def save(key: str, stdout: str, stderr: str) -> None:
     """Keep (stdout, stderr) under ``key`` (atomically; a folder that cannot be written: nothing)."""
-    data = json.dumps({"format": FORMAT, "key": key, "stdout": stdout, "stderr": stderr}, ensure_ascii=False)
-    write_atomic(_path(key), data.encode("utf-8"))
+    from derive.jsonio import dumps   # the strict writer (only a miss writes: it may import more)
+
+    write_atomic(_path(key), dumps({"format": FORMAT, "key": key, "stdout": stdout, "stderr": stderr}).encode("utf-8"))

@@ -298,3 +298,20 @@ def test_sequence_bound_carries_each_step_as_combine_does_with_clips_in_doubt():
         assert ev["limited"].any() and doubt and got_doubt, form
         np.testing.assert_array_equal(b_u, step.u_bound[0])
         np.testing.assert_array_equal(b_s, b[0])
+
+
+def test_reference_integer_powers_stay_finite_on_a_ball_around_zero():
+    """python-flint's arb ** int is nan on a ball that contains 0, and J, G and the laws square sines that
+    vanish at some poses: the Kinova's u* (eq. 15) was nan at the self-test sequence's 56th input (every joint
+    at -0.195 rad), so generate stopped with "not certified at 1280 bits". The reference emits integer powers
+    as products (derive.codegen.balls._power)."""
+    from flint import arb
+
+    from derive.codegen.balls import BallFunction, working_precision
+
+    x = sp.Symbol("x")
+    f = BallFunction([x], [x ** 2, x ** 3 + 1, 1 / x ** 2 + 0 * x], "f")
+    with working_precision(128):
+        square, cube, _ = f(arb(0, 1e-40))
+        assert square.is_finite() and cube.is_finite() and abs(square).upper() <= 1e-79
+        assert [float(v.mid()) for v in f(arb(3))] == [9.0, 28.0, 1.0 / 9.0]

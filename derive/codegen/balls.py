@@ -118,7 +118,9 @@ class BallFunction:
             b = args[0]
             if exp.is_Integer:
                 k = int(exp)
-                text = f"{b} ** {k}" if k > 0 else (f"ONE / {b}" if k == -1 else f"ONE / {b} ** {-k}")
+                # POW: products, not python-flint's arb ** int, which is nan on a ball around 0
+                # (the Kinova's u* at a pose where a sine vanishes: generate could not certify it)
+                text = f"POW({b}, {k})" if k > 0 else (f"ONE / {b}" if k == -1 else f"ONE / POW({b}, {-k})")
             elif exp == sp.Rational(1, 2):
                 text = f"{b}.sqrt()"
             elif exp == sp.Rational(-1, 2):
@@ -141,7 +143,7 @@ class BallFunction:
         prec = flint.ctx.prec
         fn = self._bound.get(prec)
         if fn is None:
-            space = {"c": [exact_ball(v) for v in self._consts], "ONE": arb(1)}
+            space = {"c": [exact_ball(v) for v in self._consts], "ONE": arb(1), "POW": _power}
             exec(self._code, space)  # noqa: S102 - our own generated straight-line code
             fn = self._bound[prec] = space[self.name]
         return fn
@@ -150,6 +152,18 @@ class BallFunction:
         if len(values) != self.arity:
             raise DerivationError(f"reference {self.name}: {self.arity} arguments expected, got {len(values)}")
         return self._function()([v if isinstance(v, arb) else ball(v) for v in values])
+
+
+def _power(b: arb, k: int) -> arb:
+    """b^k for an integer k >= 1 by repeated squaring (products of balls: a ball around 0 stays finite)."""
+    out, square = None, b
+    while k:
+        if k & 1:
+            out = square if out is None else out * square
+        k >>= 1
+        if k:
+            square = square * square
+    return out
 
 
 def ball(value) -> arb:

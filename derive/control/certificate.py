@@ -71,6 +71,18 @@ class Decision:
     seconds: float
 
 
+def halve_cells(centres: np.ndarray, halves: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two children of each cell (rows of ``centres``, half-widths ``halves``, P x m) split in half
+    along its ``axis`` (P): (2P x m centres, 2P x m half-widths), the left children first."""
+    rows = np.arange(centres.shape[0])
+    hs = halves.copy()
+    hs[rows, axis] /= 2
+    left, right = centres.copy(), centres.copy()
+    left[rows, axis] -= hs[rows, axis]
+    right[rows, axis] += hs[rows, axis]
+    return np.vstack([left, right]), np.vstack([hs, hs])
+
+
 def _spectral_norm(R: np.ndarray) -> np.ndarray:
     """An upper bound of ||R||_2 of symmetric nonnegative matrices (... x n x n): the Perron root,
     bounded by Collatz-Wielandt, rho(R) <= max_i (R x)_i / x_i for any positive x, with x a few
@@ -294,16 +306,10 @@ class ObserverCertificate:
                     point = exact_worst if split is not None else (
                         tuple(float(x) for x in worst[0]), tuple(float(x) for x in speeds[worst[1]]))
                     return done(Verdict.UNPROVEN, cells, None, point, low)
-                cs, hs = c[todo], h[todo].copy()
+                cs, hs = c[todo], h[todo]
                 grow = np.sqrt((dN[todo] ** 2).sum(axis=(-1, -2))).max(axis=1)              # P' x m
-                axis = np.argmax(hs * (grow + hs @ Tn), axis=1)
-                rows = np.arange(cs.shape[0])
-                hs[rows, axis] /= 2
-                left, right = cs.copy(), cs.copy()
-                left[rows, axis] -= hs[rows, axis]
-                right[rows, axis] += hs[rows, axis]
-                centres = np.vstack([centres, left, right])
-                halves = np.vstack([halves, hs, hs])
+                kids, kid_halves = halve_cells(cs, hs, np.argmax(hs * (grow + hs @ Tn), axis=1))
+                centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
 
     # -- numeric suprema ---------------------------------------------------------------------

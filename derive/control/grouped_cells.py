@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm
+from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
 from derive.control.grouped import GroupedModel
 
 TAIL = 2e-3          # the dropped terms' spectral bound, relative to || sum_h |C~_h| ||_2: what the truncation may cost
@@ -189,16 +189,10 @@ def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batc
         if todo.any():
             if cells + centres.shape[0] + 2 * int(todo.sum()) > budget:
                 return Decision(Verdict.UNPROVEN, cells, None, None, low, time.perf_counter() - start)
-            cs, hs = c[todo], h[todo].copy()
+            cs, hs = c[todo], h[todo]
             size = np.sqrt((curv[todo] ** 2).sum(axis=(-1, -2))).max(axis=1) + \
                 (2.0 / 3.0) * np.einsum("pi,ijk->pjk", hs, prep.T3_size)                          # P' x m x m
             pull = np.einsum("pjk,pk->pj", size, hs) + 2.0 * face[todo] * prep.T1_size[None]
-            axis = np.argmax(hs * pull, axis=1)
-            rows = np.arange(cs.shape[0])
-            hs[rows, axis] /= 2
-            left, right = cs.copy(), cs.copy()
-            left[rows, axis] -= hs[rows, axis]
-            right[rows, axis] += hs[rows, axis]
-            centres = np.vstack([centres, left, right])
-            halves = np.vstack([halves, hs, hs])
+            kids, kid_halves = halve_cells(cs, hs, np.argmax(hs * pull, axis=1))
+            centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
     return Decision(Verdict.PROVED, cells, margin, None, low, time.perf_counter() - start)

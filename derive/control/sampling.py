@@ -203,18 +203,31 @@ def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | Non
 
 def _expm(M: np.ndarray) -> np.ndarray:
     """exp of a stack of square matrices (... x k x k): scaling and squaring of a degree-18 Taylor
-    polynomial (relative error below 1e-15 at norms <= 1/2 after scaling)."""
+    polynomial (relative error below 1e-15 at norms <= 1/2 after scaling), the polynomial evaluated
+    by Paterson and Stockmeyer's scheme (Higham, Functions of Matrices, 2008, sec. 4.4.3: A^2, A^3,
+    A^4, then Horner's rule in A^4 over coefficients that are combinations of I, A, A^2, A^3): 7
+    matrix products instead of 18."""
     norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
     s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
     A = M / (2.0 ** s)
-    E = np.broadcast_to(np.eye(M.shape[-1]), M.shape).copy()
-    term = E.copy()
-    for k in range(1, 19):
-        term = term @ A / k
-        E = E + term
+    powers = [np.broadcast_to(np.eye(M.shape[-1]), M.shape), A]
+    for _ in range(2, _PS_STEP):
+        powers.append(powers[-1] @ A)
+    top = powers[-1] @ A                                       # A^4
+    coeff = [1.0 / math.factorial(k) for k in range(_TAYLOR_DEGREE + 1)]
+
+    def block(j: int) -> np.ndarray:   # sum_i coeff[4 j + i] A^i
+        return sum(coeff[_PS_STEP * j + i] * powers[i] for i in range(_PS_STEP) if _PS_STEP * j + i <= _TAYLOR_DEGREE)
+
+    E = block(_TAYLOR_DEGREE // _PS_STEP)
+    for j in range(_TAYLOR_DEGREE // _PS_STEP - 1, -1, -1):
+        E = E @ top + block(j)
     for _ in range(s):
         E = E @ E
     return E
+
+
+_TAYLOR_DEGREE, _PS_STEP = 18, 4
 
 
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:

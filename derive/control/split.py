@@ -153,6 +153,17 @@ class SplitModel:
         rows, where = self._powers(order)
         return self._weighted(q, rows)[:, where]
 
+    def jet(self, q: np.ndarray, order: int) -> list[np.ndarray]:
+        """[J_A, dJ_A, d2J_A, d3J_A][:order + 1] at inner points q (shapes as :meth:`J` ... :meth:`d3J`):
+        one exponential and one matrix product for all of them."""
+        parts = [self._powers(k) for k in range(order + 1)]
+        values = self._weighted(q, np.vstack([rows for rows, _ in parts]))
+        out, start, m, n = [], 0, self.m, self.n
+        for k, (rows, where) in enumerate(parts):
+            out.append(values[:, start + where].reshape(-1, *(m,) * k, n, n))
+            start += rows.shape[0]
+        return out
+
     def J(self, q: np.ndarray) -> np.ndarray:
         """J_A at inner points q (N x m): N x n x n."""
         return self._derivative(q, 0).reshape(-1, self.n, self.n)

@@ -44,6 +44,17 @@ def test_fourier_form_turns_products_into_sums_of_angles():
     assert sp.expand(fourier_form(expr, (a, b)) - (2 * sp.cos(a + b) + v / 2 - v * sp.cos(2 * a) / 2)) == 0
 
 
+def test_fourier_form_of_high_powers_and_negative_frequencies_matches_sympy():
+    # the Laurent form's offsets (cos(a - 2 b): negative exponents) and I^e with e up to 5
+    # (sin^5, products of four sines: the sign of I^2 and I^4), against SymPy's own rewrite
+    a, b, c, d, v = sp.symbols("a b c d v", real=True)
+    expr = (sp.sin(a) ** 5 - 3 * v * sp.sin(a) * sp.sin(b) * sp.sin(c) * sp.sin(d) + sp.cos(a - 2 * b) ** 3 * v ** 2
+            + sp.Rational(7, 3) * sp.sin(2 * a + b) * sp.cos(c) ** 2 - sp.Rational(1, 5))
+    form = fourier_form(expr, (a, b, c, d))
+    assert sp.simplify(sp.expand_trig(form - expr)) == 0
+    assert all(t.base == v for t in sp.preorder_traversal(form) if isinstance(t, sp.Pow))   # sums of single waves
+
+
 @pytest.mark.parametrize("expr, match", [("a + sin(a)", "a appears outside sin/cos"),
                                          ("sin(a/2)", "integer combination of the angles"),
                                          ("exp(a)", "expected a polynomial in sin/cos"),

@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import flint
+import numpy as np
 import sympy as sp
 
 from derive.dynamics.program import free_symbols, postorder
@@ -64,6 +65,84 @@ def _q(x: flint.fmpq) -> sp.Rational:
     return sp.Rational(int(x.p), int(x.q))
 
 
+_I2: dict = {}
+
+
+class _Laurent:
+    """x^-o q: a Laurent polynomial in x_i = exp(i theta_i) (o: a nonnegative offset per angle, q an
+    fmpq_mpoly in the x_i, I and the other symbols), so that x_i x_i^-1 = 1 holds by construction
+    and products never carry the pairs a division by x_i y_i - 1 would remove."""
+
+    __slots__ = ("q", "o", "ctx")
+
+    def __init__(self, q, o: tuple[int, ...], ctx) -> None:
+        self.q, self.o, self.ctx = q, o, ctx
+
+    def _shifted(self, o: tuple[int, ...]):
+        if o == self.o:
+            return self.q
+        nv = self.ctx.nvars()
+        exps = tuple(a - b for a, b in zip(o, self.o)) + (0,) * (nv - len(o))
+        return self.q * self.ctx.from_dict({exps: 1})
+
+    def __add__(self, other: "_Laurent") -> "_Laurent":
+        o = tuple(max(a, b) for a, b in zip(self.o, other.o))
+        return _Laurent(self._shifted(o) + other._shifted(o), o, self.ctx)
+
+    def __mul__(self, other: "_Laurent") -> "_Laurent":
+        q = self.q * other.q
+        m = len(self.o)
+        if q.degrees()[m] >= 2:
+            q = divmod(q, _I2[self.ctx])[1]
+        return _Laurent(q, tuple(a + b for a, b in zip(self.o, other.o)), self.ctx)
+
+    def __pow__(self, e: int) -> "_Laurent":
+        return _Laurent(self.q ** e, tuple(a * e for a in self.o), self.ctx)
+
+
+def _terms(p: _Laurent, m: int) -> dict:
+    """The real series {(k, powers): (a, b)} of p (first non-zero k_i positive): x^a with offset o is
+    e^{i (a - o) theta}, I^e is (-1)^(e // 2) I^(e % 2) (the remainder modulo I^2 + 1, read off the
+    exponents), and c e^{ik} + c' e^{-ik} with c = re + I im is (c + c') cos + I (c - c') sin. The
+    exponents are grouped with numpy; each coefficient is placed by one Python step."""
+    monos = np.array(p.q.monoms(), dtype=np.int64).reshape(-1, p.ctx.nvars())
+    k = monos[:, :m] - np.array(p.o, dtype=np.int64)
+    e = monos[:, m]
+    nonzero = k != 0
+    first = np.where(nonzero.any(axis=1), k[np.arange(k.shape[0]), nonzero.argmax(axis=1)], 0)
+    flip = first < 0
+    rows = np.hstack([np.where(flip[:, None], -k, k), monos[:, m + 1:]])
+    unique, where, group = _group(rows)
+    slots = (4 * group + 2 * flip + e % 2).tolist()     # re, im of e^{ik}, then of e^{-ik}, per group
+    acc = [_ZERO] * (4 * unique)
+    for slot, negative, c in zip(slots, (e % 4 >= 2).tolist(), p.q.coeffs()):
+        acc[slot] = acc[slot] - c if negative else acc[slot] + c
+    terms: dict = {}
+    for g, row in enumerate(rows[where].tolist()):
+        re, im, re2, im2 = acc[4 * g:4 * g + 4]
+        key = (tuple(row[:m]), tuple(row[m:]))
+        a, b = (re, _ZERO) if not any(key[0]) else (re + re2, im2 - im)
+        if a or b:
+            terms[key] = (a, b)
+    return terms
+
+
+def _group(rows: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """(the number of distinct rows, the index of each one's first row in sorted order, the group of
+    every row) of an integer matrix: its rows as one mixed-radix integer each when that fits in 62
+    bits (a sort of integers), else numpy's row-wise unique."""
+    if rows.shape[0] == 0:
+        return 0, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    low = rows.min(axis=0)
+    radix = rows.max(axis=0) - low + 1
+    if float(np.prod(radix.astype(float))) < 2.0 ** 62:
+        code = (rows - low) @ np.concatenate([np.cumprod(radix[::-1])[::-1][1:], [1]])
+        _, where, group = np.unique(code, return_index=True, return_inverse=True)
+    else:
+        _, where, group = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    return where.shape[0], where, group.reshape(-1)
+
+
 def fourier_series(exprs: Sequence[sp.Expr], angles: Sequence[sp.Symbol]) -> list[Series]:
     """The Fourier series of each expression (module docstring). Raises ValueError for an
     expression that is not such a polynomial (an angle outside sin/cos, sin/cos of a
@@ -72,33 +151,41 @@ def fourier_series(exprs: Sequence[sp.Expr], angles: Sequence[sp.Symbol]) -> lis
     angles = tuple(angles)
     others = tuple(sorted(free_symbols(exprs) - set(angles), key=sp.default_sort_key))
     m = len(angles)
-    names = [f"x{i}" for i in range(m)] + [f"y{i}" for i in range(m)] + ["I"] + [f"v{i}" for i in range(len(others))]
+    names = [f"x{i}" for i in range(m)] + ["I"] + [f"v{i}" for i in range(len(others))]
     ctx = flint.fmpq_mpoly_ctx.get(tuple(names), "lex")
     gens = ctx.gens()
-    xs, ys, imag = gens[:m], gens[m:2 * m], gens[2 * m]
-    var = dict(zip(others, gens[2 * m + 1:]))
+    imag = gens[m]
+    _I2[ctx] = imag * imag + 1
+    zero_o = (0,) * m
+    var = {s: _Laurent(g, zero_o, ctx) for s, g in zip(others, gens[m + 1:])}
     one = ctx.from_dict({(0,) * len(names): 1})
-    half = flint.fmpq(1, 2)
     index = {a: i for i, a in enumerate(angles)}
 
-    def trig(e: sp.Basic):
+    def constant(r) -> _Laurent:
+        return _Laurent(one * flint.fmpq(int(r.p), int(r.q)), zero_o, ctx)
+
+    def trig(e: sp.Basic) -> _Laurent:
         arg = e.args[0]
         coeffs = sp.Poly(arg, *angles).as_dict() if arg.free_symbols and arg.free_symbols <= set(angles) else None
         if not coeffs or any(sum(k) != 1 or not c.is_Integer for k, c in coeffs.items()):
             raise ValueError(f"sin/cos of {arg}: expected an integer combination of the angles")
-        plus, minus = one, one
-        for k, c in coeffs.items():
-            i = k.index(1)
-            up, down = (xs[i], ys[i]) if c > 0 else (ys[i], xs[i])
-            plus, minus = plus * up ** abs(int(c)), minus * down ** abs(int(c))
-        return (plus + minus) * half if isinstance(e, sp.cos) else (plus - minus) * half * (-imag)
+        c = [0] * m
+        for k, v in coeffs.items():
+            c[k.index(1)] = int(v)
+        o = tuple(abs(x) for x in c)
+        rest = (0,) * (len(names) - m)
+        plus = ctx.from_dict({tuple(x + y for x, y in zip(c, o)) + rest: 1})       # e^{i c.theta}
+        minus = ctx.from_dict({tuple(y - x for x, y in zip(c, o)) + rest: 1})      # e^{-i c.theta}
+        half = flint.fmpq(1, 2)
+        q = (plus + minus) * half if isinstance(e, sp.cos) else (plus - minus) * half * (-imag)
+        return _Laurent(q, o, ctx)
 
     memo: dict = {}
     for node in postorder(exprs):
         if node in memo:
             continue
         if node.is_Rational:
-            out = one * flint.fmpq(int(node.p), int(node.q))
+            out = constant(node)
         elif node.is_Symbol:
             out = None if node in index else var[node]
         elif isinstance(node, (sp.sin, sp.cos)):
@@ -120,38 +207,16 @@ def fourier_series(exprs: Sequence[sp.Expr], angles: Sequence[sp.Symbol]) -> lis
             elif node.is_Pow and node.exp.is_Integer and node.exp >= 0:
                 out = args[0] ** int(node.exp)
             elif node.is_Pow and node.base.is_Rational and node.exp.is_Integer:
-                r = sp.Rational(node)
-                out = one * flint.fmpq(int(r.p), int(r.q))
+                out = constant(sp.Rational(node))
             else:
                 raise ValueError(f"{node}: expected a polynomial in sin/cos of the angles")
         memo[node] = out
-    ideal = [xs[i] * ys[i] - 1 for i in range(m)] + [imag * imag + 1]
     result = []
     for e in exprs:
         p = memo[e]
         if p is None:
             bad = sorted(map(str, e.free_symbols & set(angles)))
             raise ValueError(f"{', '.join(bad)} appears outside sin/cos")
-        for g in ideal:
-            p = divmod(p, g)[1]
-        raw: dict = {}
-        for mono, c in zip(p.monoms(), p.coeffs()):
-            k = tuple(mono[i] - mono[m + i] for i in range(m))
-            parts = raw.setdefault((k, tuple(mono[2 * m + 1:])), [_ZERO, _ZERO])
-            parts[mono[2 * m]] += c
-        terms: dict = {}
-        for (k, powers), (re, im) in raw.items():
-            first = next((x for x in k if x), 0)
-            if first < 0:
-                continue
-            if first == 0:
-                if re:
-                    terms[(k, powers)] = (re, _ZERO)
-                continue
-            re2, im2 = raw.get((tuple(-x for x in k), powers), (_ZERO, _ZERO))
-            # c e^{ik} + c' e^{-ik} with c = re + I im: (c + c') cos + I (c - c') sin, real parts
-            a, b = re + re2, im2 - im
-            if a or b:
-                terms[(k, powers)] = (a, b)
+        terms = _terms(p, m)
         result.append(Series(angles, others, terms))
     return result

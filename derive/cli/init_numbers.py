@@ -44,12 +44,13 @@ def choose_gain(draft: str, out: Path, chain):
 
     from derive.control.inertia import joint_coordinates
     from derive.control.starter import starter_gain
+    from derive.dynamics.dag import matrix_xreplace
     from derive.dynamics.equations import derive_dynamics
     from derive.model.spec import arm_from_dict
 
     arm = arm_from_dict(tomllib.loads(draft), str(out), base_dir=out.resolve().parent)
     dyn = derive_dynamics(arm)
-    model_J = dyn.J.xreplace(dict(dyn.values))
+    model_J = matrix_xreplace(dyn.J, dict(dyn.values))    # each shared subexpression once
     from derive.control.inertia import InertiaModel
 
     model = InertiaModel(model_J, joint_coordinates(arm, dyn.sym.theta))

@@ -176,7 +176,7 @@ class ObserverCertificate:
         except np.linalg.LinAlgError:
             return "I"
         speeds = self.speeds(np.asarray(shape, dtype=float), 1.0)
-        top = {key: np.linalg.eigvalsh(np.einsum("ab,vbc,dc->vad", Li, self.split.majorant(speeds, 0.0, key), Li))
+        top = {key: np.linalg.eigvalsh(Li @ self.split.majorant(speeds, 0.0, key) @ Li.T)
                [:, -1].max() for key in ("J", "I")}
         return min(top, key=lambda key: (top[key], key))
 

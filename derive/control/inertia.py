@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 from sympy.polys.rings import ring
 
-from derive.dynamics.dag import Memo
+from derive.dynamics.dag import Memo, free_symbols
 from derive.dynamics.sx import to_sx
 from derive.dynamics.program import postorder
 from derive.dynamics.trigpoly import constant_angles
@@ -138,7 +138,7 @@ class InertiaModel:
 
     def __init__(self, J: sp.Matrix, coords: tuple[Coordinate, ...]) -> None:
         self.n = n = J.rows
-        free = set().union(*(sp.sympify(x).free_symbols for x in J))
+        free = free_symbols(sp.sympify(x) for x in J)    # each shared subexpression once
         self.deps = tuple(c for c in coords if c.symbol in free)
         self.unbounded = tuple(c for c in self.deps if c.span is None)
         self.m = m = len(self.deps)

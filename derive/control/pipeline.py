@@ -11,7 +11,7 @@ from functools import cached_property
 
 import sympy as sp
 
-from derive.dynamics.dag import Substitution
+from derive.dynamics.dag import Substitution, matrix_xreplace
 from derive.dynamics.equations import Dynamics, derive_dynamics
 from derive.dynamics.planar import lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
@@ -142,7 +142,7 @@ def derive(arm: Arm) -> Derivation:
     wrapped = wrapped_outputs(mpc_f.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
-        synthesis = synthesise_for(arm, dyn.J.xreplace(dict(dyn.values)), dyn.sym.theta)
+        synthesis = synthesise_for(arm, matrix_xreplace(dyn.J, dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
         obs_f = derive_observer(odyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,
                                 W_values=None if chen else synthesis.W)

@@ -68,7 +68,7 @@ def pair_parts(full: InertiaModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
     Ti = np.linalg.inv(T)
 
     def absolute(X: np.ndarray) -> np.ndarray:
-        return np.einsum("ab,pbc,dc->pad", T, _abs_matrix(np.einsum("ab,pbc,dc->pad", Ti, X, Ti)), T)
+        return T @ _abs_matrix(Ti @ X @ Ti.T) @ T.T          # matmul: einsum's loops took 0.2 s on 7 joints
 
     return rep, 2.0 * (absolute(coef[rep].real) + absolute(coef[rep].imag))
 
@@ -222,7 +222,7 @@ def split_model(full: InertiaModel, shape: np.ndarray, size: int = MAX_INNER) ->
         hi = np.array([span[1] for span in model.spans])
         q = lo + (hi - lo) * rng.random((64, size))
         M = model.majorant(vertices, 0.0)[None] + np.einsum("vk,pkab->pvab", vertices[:, list(trial)], model.dJ(q))
-        top = np.linalg.eigvalsh(np.einsum("ab,pvbc,dc->pvad", Ti, M, Ti))[..., -1].max()
+        top = np.linalg.eigvalsh(Ti @ M @ Ti.T)[..., -1].max()
         if best is None or top < best[0]:
             best = (top, model)
     return best[1]

@@ -139,6 +139,13 @@ class SampledLoop(LinearisedLaws):
     """The linearisation of the sampled loop of each form at many operating points
     (derive.control.sampling's module docstring)."""
 
+    def _plant_at(self, Q: np.ndarray, DQ: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """J, G and dG/d(theta, theta') at the points (the same for every form: kept for the last points)."""
+        key = (Q.shape, Q.tobytes(), DQ.tobytes())
+        if getattr(self, "_plant_key", None) != key:
+            self._plant_key, self._plant = key, (self.mass(Q), *self.bias(Q, DQ))
+        return self._plant
+
     def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
         """Jacobians at the operating points (rows of Q, DQ: theta0, theta0', with the reference
         y_d = C theta0, y_d' = C theta0', y_d'' = 0, and the form's state where dhat = 0), stacked over
@@ -149,11 +156,10 @@ class SampledLoop(LinearisedLaws):
         Q, DQ = np.asarray(Q, dtype=float), np.asarray(DQ, dtype=float)
         n, P = self.n, Q.shape[0]
         ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
-        J = self.mass(Q)
+        J, G0, dG = self._plant_at(Q, DQ)
         p0 = np.einsum("pij,pj->pi", J, DQ)               # m = J theta': r = 0, dhat = 0 at the point
         state = {"dobc": -DQ @ self.W.T, "mom": p0}.get(form, np.zeros((P, n)))
         u0, U = self.law(form, Q, DQ, ref, state)
-        G0, dG = self.bias(Q, DQ)
         acc = np.linalg.solve(J, (u0 @ self.B.T - G0)[..., None])[..., 0]
         A = np.zeros((P, 2 * n, 2 * n))
         A[:, :n, n:] = np.eye(n)

@@ -99,7 +99,14 @@ class SplitModel:
         self.spans = [full.spans[k] for k in self.inner]
         self.periodic = [full.periodic[k] for k in self.inner]
         keep = ~np.any(F[:, outer] != 0, axis=1) if outer else np.ones(F.shape[0], bool)
-        self._C = coef[keep].reshape(-1, self.n * self.n)
+        # J_A's coefficients C_f in real arithmetic over the upper triangle (every C_f is symmetric, as J is):
+        # [Re C; Im C] (2K x n(n+1)/2), and where each of the n^2 entries is found in it
+        upper = np.triu_indices(self.n)
+        kept = coef[keep][:, upper[0], upper[1]]
+        self._AB = np.vstack([kept.real, kept.imag])
+        column = np.zeros((self.n, self.n), dtype=int)
+        column[upper] = np.arange(upper[0].size)
+        self._mirror = np.maximum(column, column.T).reshape(-1)
         self._F = F[keep][:, list(self.inner)].astype(float)
         # one of each pair f, -f among the rest (the first nonzero component positive), majorised in J's scale
         # ("J") and in the identity's ("I")
@@ -134,11 +141,18 @@ class SplitModel:
 
     # -- J_A and its derivatives at inner points ---------------------------------------------
     def _weighted(self, q: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """Re sum_f w(f) C_f exp(i f.q) for each row w of ``weights`` (W x K): N x W x n^2, one
-        matrix product."""
-        E = np.exp(1j * (q @ self._F.T))                                    # N x K
-        N, K = E.shape
-        return ((E[:, None, :] * weights[None]).reshape(-1, K) @ self._C).real.reshape(N, weights.shape[0], -1)
+        """Re sum_f w(f) C_f exp(i f.q) for each row w of ``weights`` (W x K): N x W x n^2, one real
+        matrix product (N x 2K by 2K x W n(n+1)/2: half the work of the complex one it replaced)."""
+        phase = q @ self._F.T                                               # N x K
+        K, up = self._F.shape[0], self._AB.shape[1]
+        A, B = self._AB[:K], self._AB[K:]
+        wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
+        # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
+        # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper triangle
+        M = np.concatenate([wr * A[:, None] - wi * B[:, None], -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+        out = np.concatenate([np.cos(phase), np.sin(phase)], axis=1) @ M
+        return out.reshape(phase.shape[0], weights.shape[0], up)[..., self._mirror]
+
 
     def _powers(self, order: int) -> np.ndarray:
         """The weights (i f)^alpha of every order-th derivative, index tuples in row-major order: m^order x K

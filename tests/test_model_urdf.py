@@ -156,6 +156,24 @@ def test_non_unit_axis_is_normalised_and_noted():
     assert [j.type for j in chain.joints].count(JointType.PRISMATIC) == 1
 
 
+def test_a_urdf_read_again_in_one_process_gives_its_new_contents_and_a_problem_again(tmp_path):
+    # urdf_chain keeps a chain found without problems for the process (derive init reads one URDF three
+    # times); the key holds the file's bytes, so an edited file is read afresh, and a refusal is never kept
+    body = link("base") + link("l1", 2.0, inertia=(0.1, 0, 0, 0.1, 0, 0.1)) + joint("j1", "base", "l1")
+    path = write(tmp_path, robot(body))
+    first = _load(path, "base", "l1", None, "9.81")
+    assert _load(path, "base", "l1", None, "9.81") is first                    # the same file: kept
+    write(tmp_path, robot(body.replace('<mass value="2.0"/>', '<mass value="3.0"/>')))
+    masses = [p.value for p in _load(path, "base", "l1", None, "9.81").chain.parameters if p.unit == "kg"]
+    assert masses == [Fraction(3)]
+    write(tmp_path, robot(body.replace('<mass value="2.0"/>', '<mass value="-3.0"/>')))
+    for _ in range(2):
+        r = Reader()
+        table = {"urdf": str(path), "base_link": "base", "tip_link": "l1"}
+        assert urdf_chain(r, table, Path("/"), gravity_parameter(Fraction("9.81")), unit_direction(SPATIAL_DOWN)) is None
+        assert any("mass" in p.field for p in r.problems), r.problems
+
+
 def test_continuous_joint_is_one_angle():
     chain = load("kinova").chain
     assert chain.n == 6

@@ -231,10 +231,37 @@ def _locked(r: Reader, value: Any, robot: Any) -> dict[str, sp.Expr]:
     return out
 
 
+_CHAINS: dict = {}   # urdf_chain's results in this process (a key holds the file's bytes)
+_CHAIN_KEYS = ("urdf", "base_link", "tip_link", "locked", "repair_inertia")
+
+
 def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
     """The chain of the URDF named by the ``[arm]`` table ``d``, or None after
     adding its problems (each naming the element or arm-file field) to ``r``.
-    What does not move with the chain is read leniently (derive.model.urdf_rules)."""
+    What does not move with the chain is read leniently (derive.model.urdf_rules).
+
+    A chain found without problems is kept for the process, keyed by the file's bytes and
+    everything else it was read with: ``derive init`` reads the same URDF three times
+    (the chain, the draft it certifies, the file it writes: 0.3 s each for Tiago's tree)."""
+    name = d.get("urdf")
+    try:
+        raw = (Path(base_dir) / name).read_bytes() if isinstance(name, str) and not r.problems else None
+    except OSError:
+        raw = None
+    if raw is None:
+        return _urdf_chain(r, d, base_dir, gravity, direction)
+    key = (raw, str(Path(base_dir) / name), repr([d.get(k) for k in _CHAIN_KEYS]), repr(gravity),
+           tuple(sp.sympify(x) for x in direction))
+    if key not in _CHAINS:
+        found = _urdf_chain(r, d, base_dir, gravity, direction)
+        if found is None or r.problems:
+            return found
+        _CHAINS.clear()   # one file at a time: a test session reads hundreds
+        _CHAINS[key] = found
+    return _CHAINS[key]
+
+
+def _urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
     notes: list[str] = []
     doc = parse_safely(r, d.get("urdf"), base_dir)
     if doc is None:

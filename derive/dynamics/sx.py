@@ -41,22 +41,28 @@ class _Sums:
 
     def __init__(self) -> None:
         self.keys: list[frozenset] = []
+        self.signs: list[dict] = []      # per sum: each term's key -> its sign
         self.values: list = []
         self.by_term: dict = {}
 
-    def cover(self, terms: set) -> list[tuple[int, object, frozenset]]:
+    def cover(self, terms: list) -> list[tuple[int, object, frozenset]]:
         """Greedy: the largest converted sums (sign, value, keys) whose terms, all with one
-        sign flipped or none, lie in ``terms`` and in no sum taken before."""
+        sign flipped or none, lie in ``terms`` (a list: its order, the sum's own, decides
+        ties) and in no sum taken before. Never iterates a set: a set of terms holding SymPy
+        symbols has an order that depends on the process's string hash seed, and so did the
+        generated code (the Panda's kernels differed between two runs)."""
         left = set(terms)
         out = []
         while len(left) >= 2:
             best = None
-            for sign, key in left:
+            for sign, key in terms:
+                if (sign, key) not in left:
+                    continue
                 for k in self.by_term.get(key, ()):
                     keys = self.keys[k]
                     if best is not None and len(keys) <= len(best[2]):
                         continue
-                    flip = sign * next(iter(keys))[0] if keys else 1
+                    flip = sign * self.signs[k][key]
                     if all((flip * sg, ky) in left for sg, ky in keys):
                         best = (flip, self.values[k], keys, frozenset((flip * sg, ky) for sg, ky in keys))
             if best is None:
@@ -68,6 +74,7 @@ class _Sums:
     def add(self, keys: frozenset, value) -> None:
         k = len(self.keys)
         self.keys.append(keys)
+        self.signs.append({key: sign for sign, key in keys})
         self.values.append(value)
         for _, key in keys:
             self.by_term.setdefault(key, []).append(k)
@@ -95,7 +102,7 @@ def _sum(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None) -> ca.SX:
     keyed = {_term_key(a, memo): a for a in expr.args}
     out = None
     covered: set = set()
-    for sign, value, keys in sums.cover(set(keyed)):
+    for sign, value, keys in sums.cover(list(keyed)):
         covered |= keys
         out = (value if sign > 0 else -value) if out is None else (out + value if sign > 0 else out - value)
     for key, a in keyed.items():

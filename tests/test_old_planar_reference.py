@@ -82,8 +82,8 @@ def test_generated_python_module_computes_what_the_old_one_did() -> None:
                                for arg in ("theta", "dtheta", "z", "u"))   # the old kernel's inputs
         dt = [0.001]
         # at yd = theta, yd' = theta', yd'' = 0 the law's a is 0: y = -J^-1 B (u - u_law) = J^-1 (G - B u - W theta' - z)
-        law, a = module._kernel_dobc(theta, dtheta, theta, dtheta, [0.0] * n, z)
-        (ldl,) = (module._kernel_dobc_factor(theta),)
+        law, a, trig = module._kernel_dobc(theta, dtheta, theta, dtheta, [0.0] * n, z)
+        (ldl,) = (module._kernel_dobc_factor(theta, trig),)
         assert list(a) == [0.0] * n
         got.setdefault("_kernel_observer", []).append(list(map(float, module._kernel_observer(z, a, ldl, law, u, dt))))
     for name in want:

@@ -102,8 +102,11 @@ def test_panda_observer_steps_with_and_without_clipped_joints_match_the_referenc
                 if clip:
                     u[::2] = 0.5 * u[::2]   # joints 1, 3, 5, 7 held at half their u
                 return u
-            u_law, a = (np.array(v, dtype=float).ravel() for v in law(*xs, z))
-            ldl = np.array(factor(xs[0]), dtype=float).ravel()
+            u_law, a, trig = (np.array(v, dtype=float).ravel() for v in law(*xs, z))
+            # J's sines and cosines: of joints 2-7 (J never depends on the first joint's angle)
+            np.testing.assert_allclose(trig, [f(q) for q in xs[0][1:] for f in (np.sin, np.cos)], rtol=1e-15,
+                                       atol=1e-15)
+            ldl = np.array(factor(xs[0], trig), dtype=float).ravel()
             v = limit(u_law)
             got = np.array(obs(z, a, ldl, u_law, v, dt), dtype=float).ravel()
             want = z + dt * W @ np.linalg.solve(J, G - B @ v - W @ xs[1] - z)

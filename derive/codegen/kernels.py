@@ -267,7 +267,7 @@ def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...]
             "for the observer step and the sines and cosines J(theta) needs"),
         KernelSpec("dobc_factor", (x[0], *trig_in, *params), (
             Port("ldl", ldl_factor(J_trig), "J = L D L^T: -L's lower entries by rows, -D^-1"),),
-            "The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the voltage limits, "
+            "The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, "
             "J^-1 B (u - u_law): computed on a step where a joint is clipped"),
         KernelSpec("observer", (z, Port("a", a, "the dobc kernel's a"), Port("ldl", factor, "the dobc kernel's ldl"),
                                 Port("u_law", law, "the dobc kernel's u (before the limits)"),

@@ -313,7 +313,7 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     trig[0] = a6;
 }
 
-/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the voltage limits, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations. */
+/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations. */
 void glasgow_2link_kernel_dobc_factor(const glasgow_2link_real theta[2], const glasgow_2link_real trig[1], glasgow_2link_real ldl[3])
 {
     glasgow_2link_real a0, a1, a2, a3, a4, a5;

@@ -17,7 +17,7 @@ void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2
 void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2]);
 /* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a for the observer step and the sines and cosines J(theta) needs */
 void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real trig[1]);
-/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the voltage limits, J^-1 B (u - u_law): computed on a step where a joint is clipped */
+/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped */
 void glasgow_2link_kernel_dobc_factor(const glasgow_2link_real theta[2], const glasgow_2link_real trig[1], glasgow_2link_real ldl[3]);
 /* Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J */
 void glasgow_2link_kernel_observer(const glasgow_2link_real z[2], const glasgow_2link_real a[2], const glasgow_2link_real ldl[3], const glasgow_2link_real u_law[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);

@@ -192,7 +192,7 @@ def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
 
 
 def _kernel_dobc_factor(theta, trig):
-    """The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the voltage limits, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations."""
+    """The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations."""
     a2 = trig[0]
     a4 = 0.03181613333333334 + (0.0405042 * a2)
     a10 = (-1.0) / (0.17929666666666666 + (0.0810084 * a2))

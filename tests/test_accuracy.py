@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+from dataclasses import replace
+from fractions import Fraction
 from pathlib import Path
 
 import mpmath
@@ -142,16 +144,28 @@ def _constants(kernels_c: str, kernel: str) -> list[tuple[int, str]]:
             if float(m.group(1)) not in (0.0, 1.0, -1.0)]
 
 
-@pytest.mark.parametrize("arm,real,delta", [("glasgow_2link", "double", 1e-9), ("glasgow_2link", "float", 1e-4),
-                                            ("light_tip", "double", 1e-7)])
-def test_a_deliberately_wrong_kernel_fails_its_selftest(tmp_path, light_tip, arm, real, delta):
-    """Each kernel with one constant off by ``delta`` (relative) fails: the derived tolerances stay tight."""
-    d = light_tip if arm == "light_tip" else derive.derive(derive.load_arm(arm))
+def _limited(arm: str, limits: tuple[str, ...]) -> derive.Derivation:
+    """The arm with voltage limits on its motors: some self-test cases clip a joint, some do not."""
+    base = derive.load_arm(arm) if arm == "glasgow_2link" else arm_from_dict(LIGHT_TIP, "<light_tip>")
+    motors = tuple(replace(m, voltage_limit=Fraction(lim)) for m, lim in zip(base.motors, limits))
+    return derive.derive(replace(base, motors=motors))
+
+
+@pytest.mark.parametrize("arm,real,delta,limits", [
+    ("glasgow_2link", "double", 1e-9, ("60", "600")), ("glasgow_2link", "float", 1e-4, ("60", "600")),
+    ("light_tip", "double", 1e-7, ("5", "5"))])
+def test_a_deliberately_wrong_kernel_fails_its_selftest(tmp_path, arm, real, delta, limits):
+    """Each kernel with one constant off by ``delta`` (relative) fails: the derived tolerances stay tight.
+    The arms have voltage limits that clip a joint in some self-test cases: the observer step's share of
+    the limits, J^-1 B (u - u_law) with J's factor from dobc_factor (computed on a clipped step only),
+    acts on those (B's constants in the observer kernel multiply u - u_law, zero on any other step)."""
+    d = _limited(arm, limits)
     write_tree(tmp_path / "out", generate_files(d, b"", real))
     c_dir = tmp_path / "out" / "c"
     text = (c_dir / f"{arm}_kernels.c").read_text()
     assert _selftest(c_dir, arm, tmp_path / "ok").returncode == 0
-    for kernel in ("gains", "mpc", "npid", "dobc", "observer", "dobc_init", "mom", "mom_next", "mom_init"):
+    for kernel in ("gains", "mpc", "npid", "dobc", "dobc_factor", "observer", "dobc_init", "mom", "mom_next",
+                   "mom_init"):
         found = _constants(text, kernel)
         # the momentum observer's kernels (issue 12 item 6): their largest constant (B^-1 K = 739 in
         # mom); their first one can be a term too small to see in float (mom's 0.29 theta'_1, the

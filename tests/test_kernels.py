@@ -28,7 +28,7 @@ def test_every_kernel_of_every_mode_covers_its_outputs():
     d = derive.derive(derive.load_arm("planar_3link"))
     for mode in ParamsMode:
         names = [k.name for k in kernel_specs(d, mode)]
-        assert names == ["gains", "mpc", "npid", "dobc", "observer", "dobc_init", "dhat", "mom", "mom_next", "mom_init"]
+        assert names == ["gains", "mpc", "npid", "dobc", "dobc_factor", "observer", "dobc_init", "dhat", "mom", "mom_next", "mom_init"]
 
 
 def test_bridge_refuses_a_function_it_cannot_translate():

@@ -168,8 +168,9 @@ def test_w2_below_w1_inside_the_exact_region_is_certified_and_the_observer_conve
         e = B * (dist - (np.array(z) + W @ om) / B)                            # e' = B d - (z + p), eq. 22, a1
         V.append(e @ Wi.T @ J @ Wi @ e)
         # the observer step fed u (eq. 21): the dobc kernel at yd = theta, yd' = theta', yd'' = 0 gives
-        # a = 0 and the LDL^T factor of J, so the step is z + dt W J^-1 (G - B u - W theta' - z)
-        law, a, ldl = mod._kernel_dobc(list(th), list(om), list(th), list(om), [0.0, 0.0], z)
+        # a = 0, the dobc_factor kernel the LDL^T factor of J, so the step is z + dt W J^-1 (G - B u - W theta' - z)
+        law, a, trig = mod._kernel_dobc(list(th), list(om), list(th), list(om), [0.0, 0.0], z)
+        (ldl,) = (mod._kernel_dobc_factor(list(th), trig),)
         (z,) = (mod._kernel_observer(z, a, ldl, law, list(u), (dt,)),)
     V = np.array(V)
     t = np.arange(len(V)) * dt

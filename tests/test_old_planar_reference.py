@@ -65,13 +65,14 @@ def test_generated_python_module_computes_what_the_old_one_did() -> None:
     dynamics: fewer operations, other expression order) computes every kernel
     as the module the old planar path generated did, to 1e-12."""
     module = load_module(str(ROOT / "generated" / "glasgow_2link" / "python" / "glasgow_2link.py"))
-    # the generalized-momentum observer's kernels (issue 12 item 6) came after the old path; the
-    # DOBC's observer step takes the law's a, LDL^T factor and u since issue 23: checked below
+    # the generalized-momentum observer's kernels (issue 12 item 6) and dobc_factor came after the old path; the
+    # DOBC's observer step takes the law's a and u and J's LDL^T factor since issue 23: checked below
     changed = {"_kernel_dobc", "_kernel_observer"}
     names = [n for n in dir(module) if n.startswith("_kernel_")]
     got = kernels(module, [n for n in names if n not in changed])
     want = REFERENCE["generated_glasgow_2link"]
-    assert sorted(set(names) - set(want)) == ["_kernel_mom", "_kernel_mom_init", "_kernel_mom_next"]
+    assert sorted(set(names) - set(want)) == ["_kernel_dobc_factor", "_kernel_mom", "_kernel_mom_init",
+                                              "_kernel_mom_next"]
     assert set(want) <= set(names)
     n = module.N
     for k in range(POINTS):   # the old kernels' inputs, the new kernels composed as the glue does
@@ -81,7 +82,8 @@ def test_generated_python_module_computes_what_the_old_one_did() -> None:
                                for arg in ("theta", "dtheta", "z", "u"))   # the old kernel's inputs
         dt = [0.001]
         # at yd = theta, yd' = theta', yd'' = 0 the law's a is 0: y = -J^-1 B (u - u_law) = J^-1 (G - B u - W theta' - z)
-        law, a, ldl = module._kernel_dobc(theta, dtheta, theta, dtheta, [0.0] * n, z)
+        law, a, trig = module._kernel_dobc(theta, dtheta, theta, dtheta, [0.0] * n, z)
+        (ldl,) = (module._kernel_dobc_factor(theta, trig),)
         assert list(a) == [0.0] * n
         got.setdefault("_kernel_observer", []).append(list(map(float, module._kernel_observer(z, a, ldl, law, u, dt))))
     for name in want:

@@ -78,7 +78,7 @@ def test_panda_observer_steps_with_and_without_clipped_joints_match_the_referenc
     d = panda
     n = d.n
     specs = {k.name: k for k in kernel_specs(d, ParamsMode.BAKED)}
-    law, obs = to_function(specs["dobc"]), to_function(specs["observer"])
+    law, factor, obs = (to_function(specs[k]) for k in ("dobc", "dobc_factor", "observer"))
     mom, mom_next = to_function(specs["mom"]), to_function(specs["mom_next"])
     s = d.dynamics.sym
     mo = d.momentum
@@ -102,11 +102,18 @@ def test_panda_observer_steps_with_and_without_clipped_joints_match_the_referenc
                 if clip:
                     u[::2] = 0.5 * u[::2]   # joints 1, 3, 5, 7 held at half their u
                 return u
-            u_law, a, ldl = (np.array(v, dtype=float).ravel() for v in law(*xs, z))
+            u_law, a, trig = (np.array(v, dtype=float).ravel() for v in law(*xs, z))
+            # J's sines and cosines: of joints 2-7 (J never depends on the first joint's angle)
+            np.testing.assert_allclose(trig, [f(q) for q in xs[0][1:] for f in (np.sin, np.cos)], rtol=1e-15,
+                                       atol=1e-15)
+            ldl = np.array(factor(xs[0], trig), dtype=float).ravel()
             v = limit(u_law)
             got = np.array(obs(z, a, ldl, u_law, v, dt), dtype=float).ravel()
             want = z + dt * W @ np.linalg.solve(J, G - B @ v - W @ xs[1] - z)
             assert np.abs(got - want).max() <= 1e-10 * max(1.0, np.abs(want).max()), (trial, clip)
+            if not clip:   # unclipped, the glue passes a zero factor (J's multiplies u - u_law = 0)
+                zero = np.array(obs(z, a, np.zeros_like(ldl), u_law, v, dt), dtype=float).ravel()
+                np.testing.assert_array_equal(zero, got)
             u_mom, _, rate = (np.array(v_, dtype=float).ravel() for v_ in mom(*xs, m))
             v = limit(u_mom)
             got = np.array(mom_next(m, rate, u_mom, v, dt), dtype=float).ravel()

@@ -94,6 +94,8 @@ class ApiBounds:
             keep, clip = t.leaf("keep", n, kind=None), t.leaf("clip", n, kind=CONST)
             applied = [t.select(keep[i], u[i], clip[i]) for i in range(n)]
             named = {p.name: o for p, o in zip(self._specs[law].outputs[1:], outs[1:])}
+            if form == "dobc" and "dobc_factor" in self._specs:   # J's factor, as on a clipped step: unclipped,
+                (named["ldl"],) = call(t, "dobc_factor", {**ports, **named})   # it multiplies u - u_law = 0
             (s_next,) = call(t, step, {**ports, **named, "u_law": u, "u": applied})
             self._entries[form] = _Entry(t, (*u, *s_next), tuple(ports["z"]), (n, n))
 

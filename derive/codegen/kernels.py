@@ -20,6 +20,7 @@ import sympy as sp
 
 from derive.codegen.ldl import factor_symbols, ldl_factor, ldl_solve
 from derive.dynamics.dag import Memo, free_symbols, times
+from derive.dynamics.program import dag_xreplace, postorder
 from derive.errors import CoverageError
 from derive.control.pipeline import Derivation
 
@@ -99,8 +100,9 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
 
     gains(theta) -> P, D, I (eq. 35-37); mpc(x) -> u (eq. 15);
     npid(x, int_e, dt) -> u, int_next (eq. 34); dobc(x, z) -> u (eq. 27, 22), with the law's
-    acceleration a and the LDL^T factor of J; observer(z, a, ldl, u_law, u, dt) -> z_next (eq. 21,
-    fed the applied u: :func:`explicit_observer_specs`); dobc_init(x) -> z(0)
+    acceleration a and the sines and cosines J needs; dobc_factor(theta, trig) -> the LDL^T factor
+    of J; observer(z, a, ldl, u_law, u, dt)
+    -> z_next (eq. 21, fed the applied u: :func:`explicit_observer_specs`); dobc_init(x) -> z(0)
     from the derived dhat(0) (implicit: dobc_init(x, dt) -> z(0), u0); dhat(theta', z) -> the estimate dhat (eq. 22);
     x = (theta, theta', yd, yd', yd''), p = parameters
     (runtime). The discretisation is part of the maths: forward Euler,
@@ -216,10 +218,16 @@ def observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port
     )
 
 
+def trig_atoms(exprs, angles) -> tuple[sp.Expr, ...]:
+    """The sin(q) and cos(q) of the ``angles`` that occur in ``exprs``, joint by joint, sin first."""
+    present = {e for e in postorder(exprs) if isinstance(e, (sp.sin, sp.cos))}
+    return tuple(f(q) for q in angles for f in (sp.sin, sp.cos) if f(q) in present)
+
+
 def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...], z: Port, dt: Port,
                             params: tuple[Port, ...]) -> tuple[KernelSpec, ...]:
-    """The DOBC's law and forward-Euler observer step: dobc(x, z) -> u, a, ldl;
-    observer(z, a, ldl, u_law, u, dt) -> z_next.
+    """The DOBC's law and forward-Euler observer step: dobc(x, z) -> u, a, trig;
+    dobc_factor(theta, trig) -> ldl; observer(z, a, ldl, u_law, u, dt) -> z_next.
 
     The observer step z + dt W y, J y = G - B u - W theta' - z (eq. 21, 24), fed the applied u,
     is computed from the law's quantities: under the composite law u_law = B^-1 (J a + G) - B^-1
@@ -228,10 +236,14 @@ def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...]
 
         y = -a - J^-1 B (u - u_law),
 
-    the second term the voltage limit's share (zero while no joint is clipped). J^-1 is applied
-    by the LDL^T factor of the symmetric positive definite J (derive.codegen.ldl), which the law's
-    kernel computes from theta and passes on: no general solve, and theta's sines and cosines
-    once per step."""
+    the second term the voltage limit's share. J^-1 is applied by the LDL^T factor of the
+    symmetric positive definite J (derive.codegen.ldl), its own kernel: no general solve. The
+    glue computes the factor only on a step where a joint is clipped; on any other step
+    u = u_law exactly, so B (u - u_law) = 0 and every entry of the factor multiplies zero: it
+    passes a zero factor (the same z_next, but for the sign of a zero), and the step costs the
+    law (one RNEA pass, eq. 27's u* by the recursion) and W y alone. The law's kernel passes on
+    the sines and cosines of the angles J depends on (``trig``, :func:`trig_atoms`; no port when
+    there are none), so a clipped step does not call libm for them twice."""
     value = (lambda m: m) if mode is ParamsMode.RUNTIME else d.numeric
     s, n, dts = d.dynamics.sym, d.n, dt.items[0]
     W, B = value(d.observer.W), value(d.dynamics.B)
@@ -239,13 +251,24 @@ def explicit_observer_specs(d: Derivation, mode: ParamsMode, x: tuple[Port, ...]
     law = tuple(sp.Symbol(f"ulaw{i + 1}", real=True) for i in range(n))
     factor = factor_symbols(n)
     y = -sp.Matrix(a) - ldl_solve(factor, B * (sp.Matrix(s.u) - sp.Matrix(law)))
+    J = value(d.dynamics.J)
+    atoms = trig_atoms(list(J), d.dynamics.angles)
+    trig = tuple(sp.Symbol(f"trig{k + 1}", real=True) for k in range(len(atoms)))
+    J_trig = sp.Matrix(n, n, dag_xreplace(list(J), dict(zip(atoms, trig))))
+    said = "sin and cos of the angles J depends on, joint by joint"
+    trig_out, trig_in = ((Port("trig", atoms, said),), (Port("trig", trig, "the dobc kernel's trig: " + said),)
+                         ) if atoms else ((), ())
     return (
         KernelSpec("dobc", (*x, z, *params), (
             Port("u", _flat(d.measured(value(d.npid.u_dobc_rnea))), "u* - dhat, eq. 27"),
             Port("a", _flat(d.measured(value(d.mpc.a))), "a = C^-1 (K1 e + K2 e' + yd''): B u* = J a + G"),
-            Port("ldl", ldl_factor(value(d.dynamics.J)), "J = L D L^T: -L's lower entries by rows, -D^-1")),
+            *trig_out),
             "Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a "
-            "and the LDL^T factor of J(theta) for the observer step"),
+            "for the observer step and the sines and cosines J(theta) needs"),
+        KernelSpec("dobc_factor", (x[0], *trig_in, *params), (
+            Port("ldl", ldl_factor(J_trig), "J = L D L^T: -L's lower entries by rows, -D^-1"),),
+            "The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, "
+            "J^-1 B (u - u_law): computed on a step where a joint is clipped"),
         KernelSpec("observer", (z, Port("a", a, "the dobc kernel's a"), Port("ldl", factor, "the dobc kernel's ldl"),
                                 Port("u_law", law, "the dobc kernel's u (before the limits)"),
                                 Port("u", s.u, "applied voltages"), dt, *params), (

@@ -81,6 +81,7 @@ class ArmView:
     u_word: str = "voltage"                     # what u is: voltage, torque, or input (mixed actuation)
     u_unit: str = "V"                           # its unit: V, N m, or one per motor
     ldl_size: int = 0                           # reals of the LDL^T factor of J the DOBC step passes on
+    trig_size: int = 0                          # sines and cosines the dobc kernel passes to dobc_factor
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -134,6 +135,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         docs.update({str(p.symbol): p for p in observer_parameters(
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
             arm.prismatic)})
+    specs = kernel_specs(d, mode, observer)
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(
@@ -144,9 +146,9 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         py_params=tuple((name, py_literal(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
         mask=mask_type(d.n, arm.source),
-        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name))
-                      for k in kernel_specs(d, mode, observer)),
+        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs),
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])), ldl_size=factor_size(d.n),
+        trig_size=sum(p.size for k in specs if k.name == "dobc_factor" for p in k.inputs if p.name == "trig"),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),

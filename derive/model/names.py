@@ -89,7 +89,7 @@ CASADI_NAMES = frozenset("arg res iw w mem sz_arg sz_res sz_iw sz_w f0 s0 sq".sp
 # <ARM>_BUILD_TESTS, <ARM>_INSTALL, <ARM>_TOP_LEVEL, <ARM>_CMAKE_DIR.
 GENERATED_SUFFIXES = frozenset("""
 real input params params_default gains mpc_step npid_state npid_init npid_step dobc_state mask
-dobc_init dobc_step kernels kernel_gains kernel_mpc kernel_npid kernel_dobc kernel_observer
+dobc_init dobc_step kernels kernel_gains kernel_mpc kernel_npid kernel_dobc kernel_dobc_factor kernel_observer
 kernel_dobc_init dobc_estimate kernel_dhat selftest h n np ok enonfinite edt kernels_h
 mass_matrix bias gravity input_matrix forward_dynamics plant plant_h plant_selftest plant_kernel_mass_matrix
 plant_kernel_bias plant_kernel_gravity plant_kernel_input_matrix plant_kernel_forward_dynamics

@@ -107,17 +107,21 @@ int glasgow_2link_dobc_init(glasgow_2link_dobc_state *s, const glasgow_2link_inp
 int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_input *in, real dt, real u[N],
     mask *clipped)
 {
-    real v[N], law[N], a[N], ldl[3], next[N];
+    real v[N], law[N], a[N], trig[1], ldl[3], next[N];
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
-    glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v, a, ldl);
+    glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v, a, trig);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
         law[i] = v[i];
         if (clip(&v[i], u_max[i])) hit |= (mask)1 << i;
     }
+    /* J's factor only serves J^-1 B (u - u_law), the limits' share: unclipped, u = u_law and it
+     * multiplies zero, so a zero factor gives the same step */
+    if (hit != 0) glasgow_2link_kernel_dobc_factor(in->theta, trig, ldl);
+    else for (i = 0; i < 3; ++i) ldl[i] = 0;
     glasgow_2link_kernel_observer(s->z, a, ldl, law, v, &dt, next);
     if (!finite_all(next, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) { s->z[i] = next[i]; u[i] = v[i]; }

@@ -223,8 +223,8 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
     int_next[1] = a3;
 }
 
-/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step; 63 operations. */
-void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real ldl[3])
+/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a for the observer step and the sines and cosines J(theta) needs; 54 operations. */
+void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real trig[1])
 {
     glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16;
     a0 = -14.782608695652174;
@@ -287,8 +287,8 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     a16 = a16 * a9;
     a4 = a4 + a16;
     a16 = 0.03181613333333334;
-    a11 = a16 * a11;
-    a4 = a4 + a11;
+    a16 = a16 * a11;
+    a4 = a4 + a16;
     a2 = a2 * a4;
     a0 = a0 + a2;
     u[0] = a0;
@@ -302,7 +302,7 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     a2 = 0.0004136;
     a2 = a2 * a5;
     a2 = a2 + a8;
-    a2 = a2 + a11;
+    a2 = a2 + a16;
     a1 = a1 * a2;
     a0 = a0 + a1;
     u[1] = a0;
@@ -310,22 +310,32 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     a10 = a10 + a12;
     a10 = a10 + a14;
     a[1] = a10;
-    a10 = 0.0405042;
-    a10 = a10 * a6;
-    a10 = a16 + a10;
-    a14 = -1.0;
-    a12 = 0.17929666666666666;
-    a9 = 0.0810084;
-    a9 = a9 * a6;
-    a12 = a12 + a9;
-    a12 = a14 / a12;
-    a9 = a10 * a12;
-    ldl[0] = a9;
-    ldl[1] = a12;
-    a10 = a10 * a9;
-    a16 = a16 + a10;
-    a14 = a14 / a16;
-    ldl[2] = a14;
+    trig[0] = a6;
+}
+
+/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations. */
+void glasgow_2link_kernel_dobc_factor(const glasgow_2link_real theta[2], const glasgow_2link_real trig[1], glasgow_2link_real ldl[3])
+{
+    glasgow_2link_real a0, a1, a2, a3, a4, a5;
+    (void)theta;
+    a0 = 0.03181613333333334;
+    a1 = 0.0405042;
+    a2 = trig[0];
+    a1 = a1 * a2;
+    a1 = a0 + a1;
+    a3 = -1.0;
+    a4 = 0.17929666666666666;
+    a5 = 0.0810084;
+    a5 = a5 * a2;
+    a4 = a4 + a5;
+    a4 = a3 / a4;
+    a5 = a1 * a4;
+    ldl[0] = a5;
+    ldl[1] = a4;
+    a1 = a1 * a5;
+    a0 = a0 + a1;
+    a3 = a3 / a0;
+    ldl[2] = a3;
 }
 
 /* Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J; 21 operations. */

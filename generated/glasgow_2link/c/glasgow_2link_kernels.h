@@ -15,8 +15,10 @@ void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link
 void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], glasgow_2link_real u[2]);
 /* Nonlinear PID predictive control law (eq. 34-38) and its integrator step */
 void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2]);
-/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step */
-void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real ldl[3]);
+/* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a for the observer step and the sines and cosines J(theta) needs */
+void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real trig[1]);
+/* The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped */
+void glasgow_2link_kernel_dobc_factor(const glasgow_2link_real theta[2], const glasgow_2link_real trig[1], glasgow_2link_real ldl[3]);
 /* Disturbance observer step (eq. 21, 24), forward Euler with the applied u: J y = G - B u - W theta' - z = -J a - B (u - u_law), solved with the law's LDL^T factor of J */
 void glasgow_2link_kernel_observer(const glasgow_2link_real z[2], const glasgow_2link_real a[2], const glasgow_2link_real ldl[3], const glasgow_2link_real u_law[2], const glasgow_2link_real u[2], const glasgow_2link_real dt[1], glasgow_2link_real z_next[2]);
 /* Observer state giving the derived initial estimate dhat(0) (eq. 30, not 31) */

@@ -168,7 +168,7 @@ def _kernel_npid(theta, dtheta, yd, dyd, ddyd, int_e, dt):
 
 
 def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
-    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a and the LDL^T factor of J(theta) for the observer step; 63 operations."""
+    """Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a for the observer step and the sines and cosines J(theta) needs; 54 operations."""
     a1 = dtheta[0]
     a8 = dtheta[1]
     a9 = a1 + a8
@@ -185,13 +185,20 @@ def _kernel_dobc(theta, dtheta, yd, dyd, ddyd, z):
     a50 = (a16 + a22) + a32
     a54 = 0.10659 * (((0.38 * (a1 * a1)) * a13) + ((0.38 * a50) * a39))
     a60 = 0.03181613333333334 * a37
-    a81 = 0.03181613333333334 + (0.0405042 * a39)
-    a87 = (-1.0) / (0.17929666666666666 + (0.0810084 * a39))
-    a88 = a81 * a87
     u = [((-14.782608695652174) * (a1 + z[0])) + (14.782608695652174 * (((((0.38 * ((((-0.10659) * (a9 * a9)) * a13) + ((0.10659 * a37) * a39))) + (0.019617647058823528 * a1)) + a54) + (0.14748053333333333 * a50)) + a60)), ((-113.63636363636364) * ((a1 + z[1]) + (a8 + a8))) + (113.63636363636364 * (((0.0004136 * a8) + a54) + a60))]
     a = [a50, (a17 + a26) + a36]
-    ldl = [a88, a87, (-1.0) / (0.03181613333333334 + (a81 * a88))]
-    return u, a, ldl
+    trig = [a39]
+    return u, a, trig
+
+
+def _kernel_dobc_factor(theta, trig):
+    """The LDL^T factor of J(theta) (eq. 12) for the observer step's share of the limits on u, J^-1 B (u - u_law): computed on a step where a joint is clipped; 9 operations."""
+    a2 = trig[0]
+    a4 = 0.03181613333333334 + (0.0405042 * a2)
+    a10 = (-1.0) / (0.17929666666666666 + (0.0810084 * a2))
+    a11 = a4 * a10
+    ldl = [a11, a10, (-1.0) / (0.03181613333333334 + (a4 * a11))]
+    return ldl
 
 
 def _kernel_observer(z, a, ldl, u_law, u, dt):
@@ -268,6 +275,7 @@ def _kernel_mom_init(theta, dtheta):
 
 
 _FLOAT, _LIST, _SIZE = {float}, {list}, {N}
+_ZERO_FACTOR = (0.0,) * 3   # the observer step's factor of J on an unclipped step
 _INPUT = tuple(f"inp.{name}" for name in Input.__slots__)
 
 
@@ -431,10 +439,12 @@ def dobc_step(state, inp, dt):
     code, x, dt = _args(inp, dt, state, "z")
     if code:
         return code, None, None
-    law, a, ldl = _kernel_dobc(*x)
+    law, a, trig = _kernel_dobc(*x)
     if not _finite(law):
         return ENONFINITE, None, None
     u, mask = _clip(law, U_MAX)
+    # J's factor only serves J^-1 B (u - u_law): unclipped, it multiplies zero
+    (ldl,) = (_kernel_dobc_factor(x[0], trig),) if mask else (_ZERO_FACTOR,)
     (nxt,) = (_kernel_observer(x[5], a, ldl, law, u, (dt,)),)
     if not _finite(nxt):
         return ENONFINITE, None, None

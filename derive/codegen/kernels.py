@@ -144,7 +144,7 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     dt_sym = sp.Symbol("dt", positive=True)
     dt = Port("dt", (dt_sym,), "sample time [s]")
     npid = d.npid
-    dhat0 = law(npid.dhat0)
+    dhat0 = law(d.dhat0)   # expanded once the values are in (derive.control.pipeline)
     W, B = d.observer.W, d.dynamics.B
     J = value(d.dynamics.J)
     A = J + dt_sym * value(W)      # backward Euler: J + dt W

@@ -172,7 +172,7 @@ def derive(arm: Arm) -> Derivation:
         arm=arm, dynamics=dyn, mpc=mpc, observer=obs, npid=npid, values=values,
         theta=dyn.sym.theta, dtheta=dyn.sym.dtheta, J=num(dyn.J), G=num(dyn.G), B=num(dyn.B),
         C=mpc.Cout, K1=num(mpc.K1), K2=num(mpc.K2), W=num(obs.W), L=num(obs.L), P=num(npid.P),
-        D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0), u_star=num(mpc.u_star),
+        D=num(npid.D), I=num(npid.I), N=num(npid.N), dhat0=num(npid.dhat0).applyfunc(sp.expand), u_star=num(mpc.u_star),
         u_dobc=num(npid.u_dobc), u_npid=num(npid.u_npid), dhat=num(obs.dhat), lumped=lumped,
         speed_bound=bound, warnings=tuple(warnings), synthesis=synthesis, momentum=mom,
         u_mom=num(mpc.u_star - mom.dhat), wrapped=wrapped,

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from derive.dynamics.dag import times
 from derive.dynamics.equations import Dynamics
 from derive.model.spec import momentum_symbols
 
@@ -91,4 +92,4 @@ def derive_momentum(dyn: Dynamics) -> Momentum:
     p_rnea, ct = dyn.momentum   # J theta', C^T theta' by the recursion
     beta_rnea = ct - dyn.gravity - dyn.damping * dq
     return Momentum(k=k, m=m, K=K, p=p, beta=beta, r=r, m_rate=dyn.B * sp.Matrix(s.u) + beta + r,
-                    dhat=Binv * r, p_rnea=p_rnea, beta_rnea=beta_rnea, dhat_rnea=Binv * K * (p_rnea - sp.Matrix(m)))
+                    dhat=Binv * r, p_rnea=p_rnea, beta_rnea=beta_rnea, dhat_rnea=times(Binv * K, p_rnea - sp.Matrix(m)))   # diagonal x large: derive.dynamics.dag.times

@@ -280,6 +280,15 @@ class ObserverCertificate:
         hi = np.array([span[1] for span in md.spans])
         centres, halves = ((lo + hi) / 2)[None, :], ((hi - lo) / 2)[None, :]
         cells, margin, low, worst = 0, math.inf, math.inf, None
+        # at rate 0 the vertices come in pairs v, -v (vertex V - 1 - i is -vertex i), where |dN| and |H| are
+        # the same: their bounds are taken on the first half and mirrored
+        V = speeds.shape[0]
+        paired = beta == 0.0 and V % 2 == 0 and V > 1 and bool(np.all(speeds[::-1][:V // 2] == -speeds[:V // 2]))
+        lead = V // 2 if paired else V
+
+        def mirrored(x: np.ndarray) -> np.ndarray:
+            return np.concatenate([x, x[:, ::-1]], axis=1) if paired else x
+
         while centres.shape[0]:
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
@@ -304,13 +313,14 @@ class ObserverCertificate:
             rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
                                   lam.shape)                                                   # P x V
             if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
-                H = -(speeds @ d3J[0].reshape(P, m, -1)).reshape(P, -1, m * m, n * n) \
-                    - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                          # P x V x m^2 x n^2
-                quad = _spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n))
+                H = -(speeds[:lead] @ d3J[0].reshape(P, m, -1)).reshape(P, -1, m * m, n * n) \
+                    - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                          # P x V' x m^2 x n^2
+                quad = mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
                 hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)
                 cubic = _spectral_norm((hhh @ T3.reshape(m ** 3, -1)).reshape(P, n, n) / 6.0)
                 rem = np.minimum(rem, quad + cubic[:, None])
-            lin = _spectral_norm((h[:, None, None, :] @ np.abs(dN).reshape(P, -1, m, n * n)).reshape(P, -1, n, n))
+            lin = mirrored(_spectral_norm((h[:, None, None, :] @ np.abs(dN[:, :lead]).reshape(P, -1, m, n * n))
+                                          .reshape(P, -1, n, n)))
             bound = lam - lin                                                                  # P x V
             # the vertices' minimum of the affine part is at most its value at the centre (concave): enumerate
             # them only where the cheap bound fails and the centre's own eigenvalue could still succeed

@@ -210,18 +210,26 @@ def _expm(M: np.ndarray) -> np.ndarray:
     norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
     s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
     A = M / (2.0 ** s)
-    powers = [np.broadcast_to(np.eye(M.shape[-1]), M.shape), A]
+    powers = [None, A]
     for _ in range(2, _PS_STEP):
         powers.append(powers[-1] @ A)
     top = powers[-1] @ A                                       # A^4
     coeff = [1.0 / math.factorial(k) for k in range(_TAYLOR_DEGREE + 1)]
+    diagonal = np.arange(M.shape[-1])
+    scratch = np.empty_like(A)
 
-    def block(j: int) -> np.ndarray:   # sum_i coeff[4 j + i] A^i
-        return sum(coeff[_PS_STEP * j + i] * powers[i] for i in range(_PS_STEP) if _PS_STEP * j + i <= _TAYLOR_DEGREE)
+    def block(j: int) -> np.ndarray:   # sum_i coeff[4 j + i] A^i, in place; A^0 = I: the diagonal only
+        out = np.zeros_like(A)
+        for i in range(1, _PS_STEP):
+            if _PS_STEP * j + i <= _TAYLOR_DEGREE:
+                out += np.multiply(powers[i], coeff[_PS_STEP * j + i], out=scratch)
+        out[..., diagonal, diagonal] += coeff[_PS_STEP * j]
+        return out
 
     E = block(_TAYLOR_DEGREE // _PS_STEP)
     for j in range(_TAYLOR_DEGREE // _PS_STEP - 1, -1, -1):
-        E = E @ top + block(j)
+        E = E @ top
+        E += block(j)
     for _ in range(s):
         E = E @ E
     return E

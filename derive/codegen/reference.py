@@ -24,6 +24,7 @@ from flint import arb, arb_mat
 from derive.codegen.balls import BallFunction, ball, working_precision
 from derive.dynamics.dag import times
 from derive.dynamics.program import lambdify
+from derive.control.momentum import coriolis_rate
 from derive.control.pipeline import Derivation
 
 DIGITS = 40               # proved correct digits of every reference vector (norm-wise)
@@ -78,7 +79,9 @@ class Reference:
         self._Binv_G = fn("Binv_G", list(s.theta + s.dtheta), times(d.B.inv(), d.G))
         mom = d.momentum   # the generalized-momentum observer (derive.control.momentum)
         self._mom = fn("mom", x + list(mom.m), d.u_mom)
-        self._mom_rate = fn("mom_rate", list(s.theta + s.dtheta) + list(mom.m) + list(s.u), d.numeric(mom.m_rate))
+        # the reference m' from the chain's Coriolis matrix, not the recursion the kernels use
+        self._mom_rate = fn("mom_rate", list(s.theta + s.dtheta) + list(mom.m) + list(s.u),
+                            d.numeric(coriolis_rate(d.dynamics, mom)))
         self._mom_init = fn("mom_init", list(s.theta + s.dtheta), d.numeric(mom.p))
         self._mom_dhat = fn("mom_dhat", list(s.theta + s.dtheta) + list(mom.m), d.numeric(mom.dhat))
         limits = u_max if u_max is not None else [

@@ -54,7 +54,10 @@ class Momentum:
     (the integral of (*), n); p = J theta' (n x 1); beta = C^T theta' - g - F theta' (n x 1);
     r = K (p - m) (n x 1); m_rate = B u + beta + r (n x 1); dhat = B^-1 r (n x 1);
     p_rnea, beta_rnea, dhat_rnea: p, beta and dhat as the kernels compute them (one recursion,
-    derive.dynamics.momentum), equal to p, beta and dhat.
+    derive.dynamics.momentum), equal to p, beta and dhat. A derivation's own stage (the dynamics
+    put in) holds ``beta`` and ``m_rate`` in the recursion's form (:func:`by_recursion`): the
+    Coriolis matrix of ``beta`` is formed only where a check compares the two (derive check,
+    the code generator's reference: :func:`coriolis_rate`).
     """
 
     k: tuple[sp.Symbol, ...]
@@ -92,4 +95,26 @@ def derive_momentum(dyn: Dynamics) -> Momentum:
     p_rnea, ct = dyn.momentum   # J theta', C^T theta' by the recursion
     beta_rnea = ct - dyn.gravity - dyn.damping * dq
     return Momentum(k=k, m=m, K=K, p=p, beta=beta, r=r, m_rate=dyn.B * sp.Matrix(s.u) + beta + r,
-                    dhat=Binv * r, p_rnea=p_rnea, beta_rnea=beta_rnea, dhat_rnea=times(Binv * K, p_rnea - sp.Matrix(m)))   # diagonal x large: derive.dynamics.dag.times
+                    dhat=Binv * r, p_rnea=p_rnea, beta_rnea=beta_rnea,
+                    dhat_rnea=times(Binv * K, p_rnea - sp.Matrix(m)))   # diagonal x large: derive.dynamics.dag.times
+
+
+def by_recursion(mom: Momentum, dyn: Dynamics) -> Momentum:
+    """``mom`` with beta and m_rate = B u + beta + r in the recursion's form (beta_rnea, equal to
+    C^T theta' - g - F theta'): what a derivation keeps once the dynamics are put in, so that no
+    command forms the Coriolis matrix unless it checks the identity (0.3 s of SymPy on a 7-joint
+    arm, for show, init and the sample-time analysis that read only m_rate)."""
+    from dataclasses import replace
+
+    return replace(mom, beta=mom.beta_rnea, m_rate=dyn.B * sp.Matrix(dyn.sym.u) + mom.beta_rnea + mom.r)
+
+
+def coriolis_rate(dyn: Dynamics, mom: Momentum) -> sp.Matrix:
+    """m' = B u + C^T theta' - g - F theta' + K (J theta' - m) (*) from ``dyn``'s own Coriolis matrix
+    (n x 1): the reference form, independent of the recursion the kernels use."""
+    n = len(dyn.sym.theta)
+    dq = sp.Matrix(dyn.sym.dtheta)
+    C = dyn.coriolis
+    beta = sp.Matrix([sum((C[j, i] * dq[j] for j in range(n)), sp.S.Zero) for i in range(n)]) \
+        - dyn.gravity - dyn.damping * dq
+    return dyn.B * sp.Matrix(dyn.sym.u) + beta + times(mom.K, times(dyn.J, dq) - sp.Matrix(mom.m))

@@ -15,7 +15,7 @@ from derive.dynamics.dag import Substitution, matrix_xreplace
 from derive.dynamics.equations import Dynamics, derive_dynamics
 from derive.dynamics.planar import lumped_2link
 from derive.control.mpc import Mpc, derive_mpc, gains
-from derive.control.momentum import Momentum, derive_momentum
+from derive.control.momentum import Momentum, by_recursion, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.grid import check_definite
@@ -150,7 +150,7 @@ def derive(arm: Arm) -> Derivation:
         obs_f = derive_observer(odyn, w_values=ctl.w, W_values=ctl.W)
     npid_f = derive_npid(odyn, mpc_f, obs_f)
     mom_f = derive_momentum(odyn)
-    mpc, obs, npid, mom = (odyn.inline_stage(x) for x in (mpc_f, obs_f, npid_f, mom_f))
+    mpc, obs, npid, mom = (odyn.inline_stage(x) for x in (mpc_f, obs_f, npid_f, by_recursion(mom_f, odyn)))
     mom_values = tuple((p.symbol, p.rational) for p in momentum_parameters(ctl))
     values = dyn.values + mpc.values + obs.values + mom_values
     rep = dict(values)

@@ -293,7 +293,7 @@ class ObserverCertificate:
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
             cells += c.shape[0]
-            J, dJ, d2J, *d3J = (x * sc for x in md.jet(c, 2 if T3 is None else 3))
+            J, dJ, d2J, *d3J = md.jet(c, 2 if T3 is None else 3, sc)
             # the contractions as matrix products (numpy's einsum loops took a third of the decision's time)
             P = c.shape[0]
             N = S[None, None] - offset[None] - (speeds @ dJ.reshape(P, m, -1)).reshape(P, -1, n, n) \
@@ -313,7 +313,9 @@ class ObserverCertificate:
             rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
                                   lam.shape)                                                   # P x V
             if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
-                H = -(speeds[:lead] @ d3J[0].reshape(P, m, -1)).reshape(P, -1, m * m, n * n) \
+                # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
+                H = -(speeds[:lead] @ np.moveaxis(d3J[0].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
+                    .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3) \
                     - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                          # P x V' x m^2 x n^2
                 quad = mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
                 hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)

@@ -223,9 +223,10 @@ class InertiaModel:
         """d^2 J/dq_j dq_k at points q: N x m x m x n x n."""
         return self._eval("d2J", q).reshape(q.shape[0], self.m, self.m, self.n, self.n)
 
-    def jet(self, q: np.ndarray, order: int) -> list[np.ndarray]:
-        """[J, dJ, d2J, d3J][:order + 1] at points q (shapes as each method's)."""
-        return [f(q) for f in (self.J, self.dJ, self.d2J, self.d3J)[:order + 1]]
+    def jet(self, q: np.ndarray, order: int, scale: np.ndarray | None = None) -> list[np.ndarray]:
+        """[J, dJ, d2J, d3J][:order + 1] at points q (shapes as each method's), each entry (a, b) times
+        ``scale[a, b]`` when given."""
+        return [f(q) if scale is None else f(q) * scale for f in (self.J, self.dJ, self.d2J, self.d3J)[:order + 1]]
 
     def d3J(self, q: np.ndarray) -> np.ndarray:
         """d^3 J/dq_i dq_j dq_k at points q: N x m x m x m x n x n (its CasADi function made on first use)."""

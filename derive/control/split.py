@@ -140,12 +140,13 @@ class SplitModel:
         return self._bounds
 
     # -- J_A and its derivatives at inner points ---------------------------------------------
-    def _weighted(self, q: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    def _weighted(self, q: np.ndarray, weights: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
         """Re sum_f w(f) C_f exp(i f.q) for each row w of ``weights`` (W x K): N x W x n^2, one real
         matrix product (N x 2K by 2K x W n(n+1)/2: half the work of the complex one it replaced)."""
         phase = q @ self._F.T                                               # N x K
         K, up = self._F.shape[0], self._AB.shape[1]
-        A, B = self._AB[:K], self._AB[K:]
+        AB = self._AB if scale is None else self._AB * scale[np.triu_indices(self.n)][None]
+        A, B = AB[:K], AB[K:]
         wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
         # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
         # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper triangle
@@ -167,11 +168,12 @@ class SplitModel:
         rows, where = self._powers(order)
         return self._weighted(q, rows)[:, where]
 
-    def jet(self, q: np.ndarray, order: int) -> list[np.ndarray]:
+    def jet(self, q: np.ndarray, order: int, scale: np.ndarray | None = None) -> list[np.ndarray]:
         """[J_A, dJ_A, d2J_A, d3J_A][:order + 1] at inner points q (shapes as :meth:`J` ... :meth:`d3J`):
-        one exponential and one matrix product for all of them."""
+        one exponential and one matrix product for all of them; each entry (a, b) times ``scale[a, b]``
+        when given (n x n, symmetric: folded into the coefficients)."""
         parts = [self._powers(k) for k in range(order + 1)]
-        values = self._weighted(q, np.vstack([rows for rows, _ in parts]))
+        values = self._weighted(q, np.vstack([rows for rows, _ in parts]), scale)
         out, start, m, n = [], 0, self.m, self.n
         for k, (rows, where) in enumerate(parts):
             out.append(values[:, start + where].reshape(-1, *(m,) * k, n, n))

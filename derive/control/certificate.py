@@ -298,7 +298,8 @@ class ObserverCertificate:
             P = c.shape[0]
             N = S[None, None] - offset[None] - (speeds @ dJ.reshape(P, m, -1)).reshape(P, -1, n, n) \
                 - 2.0 * beta * J[:, None]
-            dN = -(speeds @ d2J.reshape(P, m, -1)).reshape(P, -1, m, n, n) - 2.0 * beta * dJ[:, None]   # P x V x m x n x n
+            dN = -(speeds @ d2J.reshape(P, m, -1)).reshape(P, -1, m, n, n) \
+                - 2.0 * beta * dJ[:, None]                                                     # P x V x m x n x n
             lam = np.linalg.eigvalsh(N)[..., 0]                                           # P x V
             i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
             if lam[i, vi] < low:
@@ -333,8 +334,8 @@ class ObserverCertificate:
             step = max(1, 2 ** 21 // (deltas.shape[0] * n * n))
             for chunk in range(0, hard.shape[0], step):
                 pv = hard[chunk:chunk + step]
-                A = N[pv[:, 0], pv[:, 1]][:, None] + ((deltas[None] * h[pv[:, 0]][:, None, :])
-                                                       @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)).reshape(-1, deltas.shape[0], n, n)
+                corners = (deltas[None] * h[pv[:, 0]][:, None, :]) @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)
+                A = N[pv[:, 0], pv[:, 1]][:, None] + corners.reshape(-1, deltas.shape[0], n, n)
                 r = rem[pv[:, 0], pv[:, 1]]
                 shift = r + np.maximum(2.0 * tol, 0.5 * (lam[pv[:, 0], pv[:, 1]] - r))
                 passed = _positive_definite(A - shift[:, None, None, None] * np.eye(n)).all(axis=1)

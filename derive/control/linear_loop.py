@@ -139,10 +139,12 @@ class SampledLoop(LinearisedLaws):
     """The linearisation of the sampled loop of each form at many operating points
     (derive.control.sampling's module docstring)."""
 
+    _plant_key: tuple | None = None   # the points _plant_at was last asked for
+
     def _plant_at(self, Q: np.ndarray, DQ: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """J, G and dG/d(theta, theta') at the points (the same for every form: kept for the last points)."""
         key = (Q.shape, Q.tobytes(), DQ.tobytes())
-        if getattr(self, "_plant_key", None) != key:
+        if self._plant_key != key:
             self._plant_key, self._plant = key, (self.mass(Q), *self.bias(Q, DQ))
         return self._plant
 

@@ -92,7 +92,7 @@ def derive_npid(dyn: Dynamics, mpc: Mpc, obs: Observer) -> Npid:
     rest = constant - dhat_init
     if set(dhat_init) & set().union(*(x.free_symbols for x in rest)):
         raise DerivationError("no unique initial estimate dhat(0) removes the constant of eq. (30)")
-    dhat0 = -rest   # not expanded: its products share M and K2 (expanding them cost a third of derive_npid)
+    dhat0 = -rest   # expanded once the arm's values are in (derive.control.pipeline), not over T1, T2
     dhat_pid = rate.xreplace(antiderivative)  # eq. (32): dhat(t) with its constant removed
     xi = mpc.Cout.inv() * (de + mpc.K2 * e + mpc.K1 * int_e)   # dhat_pid = -B^-1 W xi
     u_npid = mpc.u_star - dhat_pid  # kept factored: its Jacobians keep the structure of J, G

@@ -201,6 +201,9 @@ def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | Non
         dt = min(dt * 2, stop)
 
 
+_TAYLOR_DEGREE, _PS_STEP = 18, 4   # _expm's Taylor polynomial and its Paterson-Stockmeyer step
+
+
 def _expm(M: np.ndarray) -> np.ndarray:
     """exp of a stack of square matrices (... x k x k): scaling and squaring of a degree-18 Taylor
     polynomial (relative error below 1e-15 at norms <= 1/2 after scaling), the polynomial evaluated
@@ -233,9 +236,6 @@ def _expm(M: np.ndarray) -> np.ndarray:
     for _ in range(s):
         E = E @ E
     return E
-
-
-_TAYLOR_DEGREE, _PS_STEP = 18, 4
 
 
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:

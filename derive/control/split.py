@@ -150,10 +150,10 @@ class SplitModel:
         wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
         # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
         # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper triangle
-        M = np.concatenate([wr * A[:, None] - wi * B[:, None], -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+        M = np.concatenate([wr * A[:, None] - wi * B[:, None],
+                            -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
         out = np.concatenate([np.cos(phase), np.sin(phase)], axis=1) @ M
         return out.reshape(phase.shape[0], weights.shape[0], up)[..., self._mirror]
-
 
     def _powers(self, order: int) -> np.ndarray:
         """The weights (i f)^alpha of every order-th derivative, index tuples in row-major order: m^order x K

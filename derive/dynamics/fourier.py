@@ -66,18 +66,16 @@ def _q(x: flint.fmpq) -> sp.Rational:
     return sp.Rational(int(x.p), int(x.q))
 
 
-_I2: dict = {}
-
-
 class _Laurent:
     """x^-o q: a Laurent polynomial in x_i = exp(i theta_i) (o: a nonnegative offset per angle, q an
     fmpq_mpoly in the x_i, I and the other symbols), so that x_i x_i^-1 = 1 holds by construction
-    and products never carry the pairs a division by x_i y_i - 1 would remove."""
+    and products never carry the pairs a division by x_i y_i - 1 would remove; ``i2``: I^2 + 1 in
+    q's ring, by which a product is reduced."""
 
-    __slots__ = ("q", "o", "ctx")
+    __slots__ = ("q", "o", "ctx", "i2")
 
-    def __init__(self, q, o: tuple[int, ...], ctx) -> None:
-        self.q, self.o, self.ctx = q, o, ctx
+    def __init__(self, q, o: tuple[int, ...], ctx, i2) -> None:
+        self.q, self.o, self.ctx, self.i2 = q, o, ctx, i2
 
     def _shifted(self, o: tuple[int, ...]):
         if o == self.o:
@@ -88,17 +86,17 @@ class _Laurent:
 
     def __add__(self, other: "_Laurent") -> "_Laurent":
         o = tuple(max(a, b) for a, b in zip(self.o, other.o))
-        return _Laurent(self._shifted(o) + other._shifted(o), o, self.ctx)
+        return _Laurent(self._shifted(o) + other._shifted(o), o, self.ctx, self.i2)
 
     def __mul__(self, other: "_Laurent") -> "_Laurent":
         q = self.q * other.q
         m = len(self.o)
         if q.degrees()[m] >= 2:
-            q = divmod(q, _I2[self.ctx])[1]
-        return _Laurent(q, tuple(a + b for a, b in zip(self.o, other.o)), self.ctx)
+            q = divmod(q, self.i2)[1]
+        return _Laurent(q, tuple(a + b for a, b in zip(self.o, other.o)), self.ctx, self.i2)
 
     def __pow__(self, e: int) -> "_Laurent":
-        return _Laurent(self.q ** e, tuple(a * e for a in self.o), self.ctx)
+        return _Laurent(self.q ** e, tuple(a * e for a in self.o), self.ctx, self.i2)
 
 
 def _terms(p: _Laurent, m: int) -> dict:
@@ -156,14 +154,14 @@ def fourier_series(exprs: Sequence[sp.Expr], angles: Sequence[sp.Symbol]) -> lis
     ctx = flint.fmpq_mpoly_ctx.get(tuple(names), "lex")
     gens = ctx.gens()
     imag = gens[m]
-    _I2[ctx] = imag * imag + 1
+    i2 = imag * imag + 1
     zero_o = (0,) * m
-    var = {s: _Laurent(g, zero_o, ctx) for s, g in zip(others, gens[m + 1:])}
+    var = {s: _Laurent(g, zero_o, ctx, i2) for s, g in zip(others, gens[m + 1:])}
     one = ctx.from_dict({(0,) * len(names): 1})
     index = {a: i for i, a in enumerate(angles)}
 
     def constant(r) -> _Laurent:
-        return _Laurent(one * flint.fmpq(int(r.p), int(r.q)), zero_o, ctx)
+        return _Laurent(one * flint.fmpq(int(r.p), int(r.q)), zero_o, ctx, i2)
 
     def trig(e: sp.Basic) -> _Laurent:
         arg = e.args[0]
@@ -179,7 +177,7 @@ def fourier_series(exprs: Sequence[sp.Expr], angles: Sequence[sp.Symbol]) -> lis
         minus = ctx.from_dict({tuple(y - x for x, y in zip(c, o)) + rest: 1})      # e^{-i c.theta}
         half = flint.fmpq(1, 2)
         q = (plus + minus) * half if isinstance(e, sp.cos) else (plus - minus) * half * (-imag)
-        return _Laurent(q, o, ctx)
+        return _Laurent(q, o, ctx, i2)
 
     memo: dict = {}
     for node in postorder(exprs):

@@ -71,3 +71,19 @@ def test_a_refusal_is_never_kept_and_a_bad_entry_is_rebuilt(tmp_path, arm, capsy
     entry.write_text("{not json")
     assert main(["show", str(arm)]) == 0 and capsys.readouterr().out == first
     assert json.loads(entry.read_text())["stdout"] == first
+
+
+def test_version_is_printed_on_stdout_and_read_only_when_asked(tmp_path):
+    """`derive --version` prints `derive <version>` on stdout, exit 0; any other command does not
+    read the distribution's metadata (importlib.metadata: about 30 ms a command)."""
+    import os
+
+    from derive.version import __version__
+
+    p = subprocess.run([sys.executable, "-m", "derive", "--version"], capture_output=True, text=True, cwd=tmp_path)
+    assert p.returncode == 0 and p.stdout.strip() in (f"derive {__version__}", "derive unknown (not installed)")
+    code = "import sys; from derive.cli import _parser; _parser(['show']); " \
+           "print('metadata' if 'importlib.metadata' in sys.modules else 'none')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                         env=dict(os.environ)).stdout.strip()
+    assert out == "none"

@@ -44,6 +44,15 @@ def version() -> str:
         return "unknown (not installed)"
 
 
+class _Version(argparse.Action):
+    """--version: the distribution's metadata is read only when asked (importlib.metadata costs
+    about 30 ms on every command otherwise)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(f"derive {version()}")
+        parser.exit()
+
+
 def _parser(argv: Sequence[str]) -> argparse.ArgumentParser:
     """The command line's parser for ``argv``: every command listed with its help, and the
     arguments of the command ``argv`` names: only its module is imported (the others bring what
@@ -51,7 +60,7 @@ def _parser(argv: Sequence[str]) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="derive", description=(
         "Derive and generate disturbance-observer-based and nonlinear PID controllers for "
         "robot arms (Chen's paper, eq. 11-38)."))
-    parser.add_argument("--version", action="version", version=f"derive {version()}")
+    parser.add_argument("--version", action=_Version, nargs=0, help="show the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     named = next((a for a in argv if not a.startswith("-")), None)   # the only top-level options are flags
     for name, (module, help_text) in COMMANDS.items():

@@ -26,7 +26,7 @@ from functools import cached_property
 
 import sympy as sp
 
-from derive.dynamics.dag import Memo, free_symbols, xreplace
+from derive.dynamics.dag import Memo, free_symbols, xreplace, xreplace_all
 from derive.dynamics.equations import Dynamics
 
 PREFIX = "_"   # placeholder names: no arm input names a symbol with a leading underscore
@@ -93,7 +93,7 @@ class Placeholders:
         if rule is None:
             rule = self.rule(self.symbols())
         memo = Memo() if memo is None else memo
-        return sp.Matrix(m.rows, m.cols, [xreplace(sp.sympify(v), rule, memo, keep_sums=True) for v in m])
+        return sp.Matrix(m.rows, m.cols, xreplace_all([sp.sympify(v) for v in m], rule, memo, keep_sums=True))
 
 
 class OpaqueDynamics:

@@ -1,5 +1,5 @@
 """The proved radius bound that spares the sample-time search most eigenvalue problems
-(derive.control.sampling._stable_bound, _spectral_radius): where it proves a radius below 1 the
+(derive.control.radius.stable_bound, spectral_radius): where it proves a radius below 1 the
 radius is below 1 and below the bound; where a radius is 1 or more it proves nothing, and the search
 sees the radius itself; the limits it finds are those of the eigenvalues alone."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 
 import derive
 from derive.control import sampling
-from derive.control.sampling import _spectral_radius, _stable_bound
+from derive.control.radius import balancing, spectral_radius, stable_bound
 
 
 def _stack(seed: int, count: int = 4000, k: int = 9) -> np.ndarray:
@@ -30,7 +30,7 @@ def _stack(seed: int, count: int = 4000, k: int = 9) -> np.ndarray:
 
 def test_a_proved_bound_is_below_1_and_above_the_radius():
     M = _stack(0)
-    bound = _stable_bound(M)
+    bound = stable_bound(M)
     rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
     proved = bound < 1.0
     assert proved[rho < 0.8].mean() > 0.6              # not vacuous: most radii well below 1 are proved
@@ -39,28 +39,53 @@ def test_a_proved_bound_is_below_1_and_above_the_radius():
     assert np.all(np.isinf(bound[~proved]))
 
 
+def test_the_balancing_is_an_exact_similarity_that_lets_badly_scaled_loops_be_proved():
+    """States in units 1e4 apart (rad, rad/s, N m): D^-1 M D with D of powers of two has the very
+    eigenvalues of M, bit for bit its entries times powers of two, and the bound proves far more
+    of the stable ones than without the scaling."""
+    M = _stack(3, count=1500)
+    scale = 10.0 ** np.repeat([0, 2, 4], 3)
+    M = M * (scale[:, None] / scale[None, :])
+    f = balancing(M)
+    assert f is not None and np.all(np.log2(f) == np.round(np.log2(f)))
+    B = M * (f[None, :] / f[:, None])
+    assert np.array_equal(B / (f[None, :] / f[:, None]), M)
+    rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
+    with_scaling = (stable_bound(M) < 1)[rho < 0.95].mean()
+    import derive.control.radius as radius
+    plain = radius.balancing
+    try:
+        radius.balancing = lambda P, sweeps=2: None
+        without = (stable_bound(M) < 1)[rho < 0.95].mean()
+    finally:
+        radius.balancing = plain
+    assert with_scaling > without + 0.2, (with_scaling, without)
+    assert np.all(rho[stable_bound(M) < 1] < 1)
+
+
 def test_a_radius_of_1_or_more_is_never_proved():
     M = _stack(1)
     rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
     assert (rho >= 1.0).sum() > 500
-    assert np.all(np.isinf(_stable_bound(M[rho >= 1.0])))
+    assert np.all(np.isinf(stable_bound(M[rho >= 1.0])))
 
 
 def test_the_search_sees_every_radius_of_1_or_more_and_every_radius_when_ranking():
     M = _stack(2)
-    exact = _spectral_radius(M)
-    fast = _spectral_radius(M, exact=False)
+    exact = spectral_radius(M)
+    fast = spectral_radius(M, exact=False)
     assert np.array_equal(fast >= 1.0, exact >= 1.0)
     assert np.array_equal(fast[exact >= 1.0], exact[exact >= 1.0])
     assert np.argmax(fast) == np.argmax(exact)
-    assert np.array_equal(_spectral_radius(M, exact=False, rank=True), exact)
+    assert np.array_equal(spectral_radius(M, exact=False, rank=True), exact)
     stable = M[exact < 0.999]
-    assert np.all(_spectral_radius(stable, exact=False, rank=True) < 1.0)
+    assert np.all(spectral_radius(stable, exact=False, rank=True) < 1.0)
 
 
 def test_sample_limits_are_those_of_the_eigenvalues_alone(monkeypatch):
     """my3-like 3-joint chain and the default arm: every limit, raw value and worst point of both
     discretisations equal to the search with every radius from its eigenvalues."""
+    from derive.control import radius
     from derive.model.examples import planar_chain
 
     for arm in (derive.load_arm(), planar_chain(3)):
@@ -68,7 +93,7 @@ def test_sample_limits_are_those_of_the_eigenvalues_alone(monkeypatch):
         fast = {obs: sampling.limits(d, obs) for obs in sampling.OBSERVERS}
         for kept in (sampling._LIMITS, sampling._HINTS):    # the search again, the linearisation kept
             kept.clear()
-        monkeypatch.setattr(sampling, "_stable_bound", lambda M: np.full(M.shape[:-2], np.inf))
+        monkeypatch.setattr(radius, "stable_bound", lambda M: np.full(M.shape[:-2], np.inf))
         slow = {obs: sampling.limits(d, obs) for obs in sampling.OBSERVERS}
         monkeypatch.undo()
         assert fast == slow

@@ -67,6 +67,7 @@ import numpy as np
 
 from derive.control.grid import Grid, grid
 from derive.control.linear_loop import SampledLoop
+from derive.control.radius import spectral_radius
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
@@ -127,9 +128,9 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     loop, L = _cached(_LINEAR, d, form, linearise) if points is None else linearise()
 
     def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
-        """The radii at dt (of the points idx, else all) as _spectral_radius gives them without
-        ``exact``: the search compares them with 1 and takes the worst of the failing ones; ``rank``:
-        every one exact when one fails (the active set ranks them)."""
+        """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
+        gives them without ``exact``: the search compares them with 1 and takes the worst of the
+        failing ones; ``rank``: every one exact when one fails (the active set ranks them)."""
         return _radii(loop, form, observer, dt, L if idx is None else {k: v[idx] for k, v in L.items()},
                       exact=False, rank=rank)
 
@@ -245,7 +246,7 @@ def _expm(M: np.ndarray) -> np.ndarray:
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
            rank: bool = False) -> np.ndarray:
     """Spectral radius of the sampled closed loop at every operating point (module docstring; not
-    ``exact``: as _spectral_radius gives it)."""
+    ``exact``: as spectral_radius gives it)."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
     aug = np.zeros((P, m + n, m + n))
@@ -255,13 +256,13 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
     Ux, Uc = L["Ux"], L["Uc"]
     eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
-        return _spectral_radius(Phi + Gam @ Ux, exact, rank)
+        return spectral_radius(Phi + Gam @ Ux, exact, rank)
     if form == "mom":                       # m + dt m'(x, m, u), the same in both discretisations
         R = dt * L["R"]
         Sx, Sc, Su = R[:, :, :m], eye + R[:, :, m:m + n], R[:, :, m + n:]
         M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
                             np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-        return _spectral_radius(_residual(M, L, loop.K, dt), exact, rank)
+        return spectral_radius(_residual(M, L, loop.K, dt), exact, rank)
     elif form == "npid":                      # int_e + dt (yd - C theta)
         if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
             BW = np.linalg.solve(loop.B, loop.W)
@@ -277,68 +278,14 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
         M = np.concatenate([np.concatenate([Phi + Gam @ Vx, Gam @ Vz, Gam @ Vu], axis=-1),
                             np.concatenate([Zx, Zz, Zu], axis=-1),
                             np.concatenate([Vx, Vz, Vu], axis=-1)], axis=-2)
-        return _spectral_radius(M, exact, rank)
+        return spectral_radius(M, exact, rank)
     else:                                   # explicit, or the z-only backward step (_Z_ONLY)
         A = L["J"] + (dt * loop.W if observer == _Z_ONLY else 0.0)
         K = dt * loop.W @ np.linalg.inv(A)
         Sx, Sc, Su = K @ L["dr"], eye - K, -K @ loop.B
     M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
                         np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-    return _spectral_radius(M, exact, rank)
-
-
-_SQUARINGS = 8   # _stable_bound: M, M^2, ..., M^256
-
-
-def _spectral_radius(M: np.ndarray, exact: bool = True, rank: bool = False) -> np.ndarray:
-    """The spectral radius of each matrix of a stack (... x k x k), by its eigenvalues (LAPACK's
-    geev). Not ``exact``: where :func:`_stable_bound` proves the radius below 1, that bound (< 1)
-    stands in for it, and only the rest get their eigenvalues (about 15 us each at k = 9, a matrix
-    product 0.3 us): a value >= 1 is always the radius itself; ``rank``: every one exact when any
-    is >= 1."""
-    if exact:
-        return np.abs(np.linalg.eigvals(M)).max(axis=-1)
-    out = _stable_bound(M)
-    todo = ~(out < 1.0)
-    if todo.any():
-        out[todo] = np.abs(np.linalg.eigvals(M[todo])).max(axis=-1)
-        if rank and out.max() >= 1.0 and not todo.all():
-            out[~todo] = np.abs(np.linalg.eigvals(M[~todo])).max(axis=-1)
-    return out
-
-
-def _stable_bound(M: np.ndarray) -> np.ndarray:
-    """Where the spectral radius of a matrix of the stack is proved below 1, a bound of it (below
-    1; up to the rounding of the last root), inf elsewhere: rho(M) <= ||M^(2^j)||_F^(1/2^j) (the Frobenius norm is submultiplicative and at
-    least the spectral norm), the powers by repeated squaring, whose rounding is carried (Higham,
-    Accuracy and Stability of Numerical Algorithms, 2002, sec. 3.5: fl(A B) = A B + E,
-    |E| <= gamma_k |A| |B|, so ||E||_F <= gamma_k ||A||_F ||B||_F, gamma_k = k u / (1 - k u)):
-    with a_j the norm of the computed power and e_j a bound of its distance to the exact one,
-    e_j+1 <= gamma_k a_j^2 + 2 a_j e_j + e_j^2, and rho(M) < 1 when a_j + e_j < 1. A matrix is
-    dropped once proved; overflow leaves it unproved (inf)."""
-    k = M.shape[-1]
-    u = np.finfo(float).eps / 2
-    gamma = k * u / (1 - k * u)
-    widen = 1 + 2 * k * k * u                   # the norm's own rounding (a sum of k^2 squares, a root)
-    out = np.full(M.shape[:-2], np.inf)
-    flat = out.reshape(-1)
-    idx = np.arange(flat.size)
-    P = M.reshape(-1, k, k)
-    e = np.zeros(flat.size)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for j in range(_SQUARINGS + 1):
-            a = np.sqrt(np.einsum("pij,pij->p", P, P)) * widen
-            top = a + e
-            ok = top < 1.0
-            if ok.any():
-                flat[idx[ok]] = top[ok] ** (1.0 / 2 ** j)
-                keep = ~ok
-                idx, P, a, e = idx[keep], P[keep], a[keep], e[keep]
-            if j == _SQUARINGS or idx.size == 0:
-                break
-            e = gamma * a * a + 2 * a * e + e * e
-            P = P @ P
-    return out
+    return spectral_radius(M, exact, rank)
 
 
 def _continuous_rate(loop: SampledLoop, form: str, L: dict) -> np.ndarray:

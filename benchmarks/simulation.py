@@ -173,7 +173,7 @@ def run() -> Section:
     goals += (Goal("derive simulate default, whole process, warm < 2 s (cache: derive.sim.cache)", warm[0] < 2,
                    f"{warm[0]:.2f} s wall, {warm[1]:.2f} s CPU; cold {cold[0]:.2f} s wall; warm / cold "
                    f"{warm[0] / cold[0]:.2f} wall, {warm[1] / cold[1]:.2f} CPU"),)
-    goals += (Goal("derive show my3, whole process, under 1 s of CPU (cache: derive.cli.show_cache)",
-                   shown["warm"][1] < 1, f"warm {shown['warm'][1]:.2f} s CPU, cold {shown['cold'][1]:.2f} s, "
+    goals += (Goal("derive show my3, whole process, cold (an empty cache: derived anew), under 1 s of CPU",
+                   shown["cold"][1] < 1, f"cold {shown['cold'][1]:.2f} s CPU, warm {shown['warm'][1]:.2f} s, "
                    f"--no-cache {shown['--no-cache'][1]:.2f} s (`import derive` {shown['`import derive` (anchor)'][1]:.2f} s)"),)
     return Section(TITLE, (speed, sweep_table, process, show_table, note), goals)

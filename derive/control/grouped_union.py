@@ -1,23 +1,57 @@
 """Branch and bound over the inner angles for the grouped bound, every speed vertex on shared cells (issue 23).
 
-The claim, the cell test and its proof are those of derive.control.grouped_vertex (appendix, eq. a7:
-W + W^T - J' > 0 on the box of scale v, through the grouped majorant B of J' over the outer angles;
-in S = W + W^T's coordinates G_sigma(theta) = I - v B~_sigma(theta) > 0 for every inner theta and
-vertex sigma): each vertex sigma has its own minimiser theta*_sigma, and on a cell (centre c,
-half-widths r, F the angles along which it touches a limit)
+The claim (appendix, eq. a7: V = e'^T W^-T J W^-1 e' decays when W + W^T - J' > 0 on the box of
+scale v; B the grouped majorant of J' over the outer angles, derive.control.grouped): in the
+coordinates of S = W + W^T = L L^T (T = L^-1),
 
-    lambda_min(G_sigma(c)) - v shift_sigma - v || sum_{j in F} r_j T1_{sigma,j} ||_2
-                           - v/2 || sum_jk r_j r_k T2_{sigma,jk} ||_2 > 0
+    G_sigma(theta) = I - v B~_sigma(theta) > 0 for every inner theta and every vertex sigma,
 
-shows that theta*_sigma is not in the cell unless lambda_min(G_sigma(theta*_sigma)) > 0 (T1, T2: the
-coefficients' absolute sums weighted by |h_j|, |h_j h_k|, bounds of B~_sigma's derivatives on the
-whole domain). Here the cells are shared by the vertices: a cell carries the vertices still open on
-it (a vertex that passes on a cell passes on each of its parts, the cell test being valid for any
-cell holding theta*_sigma), the values of the R basis matrices of B (constant, sigma_l,
-sigma_l sigma_l') at the centres come from one product of the centres' cos and sin by the
-coefficients, and every open vertex's value is their combination. The landscapes of the vertices
-are alike (the same terms with other signs), so most cells are needed by many vertices at once:
-the cost of a cell is that of 22 basis matrices, not of 64 vertices.
+B~ = T B T^T, a trigonometric polynomial in the inner angles with exactly known coefficients
+C~_{sigma,h} (the term c cos(h.theta) + s sin(h.theta) is at most |C~_h| = sqrt(c^2 + s^2)
+entrywise, and its derivatives d_j, d_jk at most |h_j| |C~_h|, |h_j h_k| |C~_h|), over the inner
+angles' limits where they span less than a turn and their whole turn otherwise (the outer angles:
+every value).
+
+The claim is a conjunction over the vertices, and each vertex has its own minimiser theta*_sigma of
+lambda_min(G_sigma) over the domain and u* a unit eigenvector of that smallest eigenvalue.
+phi(theta) = u*^T G_sigma(theta) u* is at least lambda_min(G_sigma(theta)) everywhere and equal to it
+at theta*, so theta* minimises phi and d_j phi(theta*) = 0 along every angle j where theta* is not on
+a limit. With the second derivatives bounded on the whole domain at once from the coefficients,
+
+    |d_jk B~_sigma(theta)| <= T2_{sigma,jk} = sum_h |C~_{sigma,h}| |h_j h_k|      (entrywise, every theta),
+
+Taylor's theorem from theta* on the cell (centre c, half-widths r) holding it (|c - theta*|_j <= r_j)
+gives (||X||_2 <= || |X| ||_2, monotone in the entries of a nonnegative matrix)
+
+    lambda_min(G_sigma(c)) <= phi(c) <= phi(theta*) + v || sum_{j in F} r_j T1_{sigma,j} ||_2
+                                        + v/2 || sum_jk r_j r_k T2_{sigma,jk} ||_2,
+
+F: the angles along which the cell touches a limit (there theta* may sit on it), T1_{sigma,j} =
+sum_h |C~_{sigma,h}| |h_j|. So a cell where lambda_min(G_sigma(c)) exceeds these bounds cannot hold
+theta*_sigma unless lambda_min(G_sigma(theta*)) > 0, and neither can any part of it: when every
+cell of a cover passes for sigma, G_sigma is positive definite everywhere. The test is a Cholesky
+factorisation of G_sigma(c) minus the bounds (and the shift below) times I.
+
+The cells are shared by the vertices: a cell carries the vertices still open on it (those that
+passed on a larger cell holding it are done), the values of B's R basis matrices (constant,
+sigma_l, sigma_l sigma_l') at the centres come from one product of the centres' cos and sin (from
+products of two halves' exponentials) by the kept coefficients, and each open vertex's value is
+their combination. The vertices' landscapes are alike (the same terms with other signs), so most
+cells are needed by many of them (the Panda: 34 open vertices a cell on average): a cell costs 22
+basis matrices' values, not 64 vertices'. A failed cell is halved along the angle of its largest
+term. Values come from the leading frequencies of every vertex (the dropped terms' absolute sum
+bounds their value; T1 and T2 keep every term); the shift subtracted from a value holds that tail,
+the coefficients' and the products' rounding and the transform's (GroupedModel.rounding). A centre
+where G_sigma itself (past the shift) is not positive definite ends the decision: unproven (the
+grouped bound refutes nothing).
+
+Measured on the Panda (W synthesised for the 1 rad/s box, inner theta2..theta5, outer theta6,
+theta7; one core): the grouped bound's supremum is about 92 % of N's own numeric supremum, and the
+decision proves 80 % of N's supremum in 75,000 cells (22 s CPU) and 85 % in 107,000 (28 s), about
+0.3 ms a cell. The alternatives measured: one branch and bound per vertex (the same test, one
+vertex's series a cell) needs 45,000-57,000 cells for each of the 64 vertices at 80 % (about 110 s);
+the Hessian at each centre from the series (derive.control.grouped_cells) costs 4 ms a cell for a
+remainder no smaller on cells of 0.1-0.3 rad.
 """
 from __future__ import annotations
 
@@ -28,8 +62,46 @@ import numpy as np
 
 from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
 from derive.control.grouped import GroupedModel
-from derive.control.grouped_vertex import EVAL_ROUNDING, SERIES_ROUNDING, TAIL, domain, first_cells, \
-    positive_definite
+
+TAIL = 1e-3              # the dropped terms' spectral bound per vertex, relative to || sum_h |C~_h| ||_2
+SERIES_ROUNDING = 1e-11  # relative rounding of B's coefficients (grid values, transform, the vertex's sum)
+EVAL_ROUNDING = 1e-12    # relative rounding of a value from the kept terms (the exponentials of |h.theta| <= 50)
+PIECES = 4               # the first cells: PIECES per angle
+
+
+def positive_definite(A: np.ndarray) -> np.ndarray:
+    """Whether each A[:, :, p] (n x n x P, symmetric) is positive definite: Cholesky without pivoting,
+    each step one array operation over the points (A is overwritten). In floating point a success
+    proves A + E positive definite with ||E||_2 <= n (n + 1) eps n ||A||_2 (Demmel's bound, Higham,
+    Accuracy and Stability of Numerical Algorithms, thm 10.5): below 1e-13 ||A|| for n = 7, which
+    the caller's shift by FLOAT_MARGIN covers (the matrices here are near I in norm)."""
+    n = A.shape[0]
+    ok = np.ones(A.shape[-1], dtype=bool)
+    for k in range(n):
+        pivot = A[k, k]
+        ok &= pivot > 0
+        if k + 1 < n:
+            col = A[k + 1:, k] / np.where(pivot > 0, pivot, 1.0)
+            A[k + 1:, k + 1:] -= col[:, None, :] * A[k, k + 1:][None, :, :]
+    return ok
+
+
+def domain(model: GroupedModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lo, hi, bounded): an inner angle whose limits span less than a turn ranges over them (its
+    faces need the first-order term), any other over a whole turn."""
+    bounded = np.array([not model.full.periodic[k] and span[1] - span[0] < 2 * math.pi
+                        for k, span in zip(model.inner, model.spans)], dtype=bool)
+    lo = np.array([span[0] if b else -math.pi for span, b in zip(model.spans, bounded)])
+    hi = np.array([span[1] if b else math.pi for span, b in zip(model.spans, bounded)])
+    return lo, hi, bounded
+
+
+def first_cells(lo: np.ndarray, hi: np.ndarray, pieces: int = PIECES) -> tuple[np.ndarray, np.ndarray]:
+    """The first cover of the box [lo, hi] (m angles): pieces^m cells, (centres, half-widths), each P x m."""
+    m = lo.size
+    axes = [lo[j] + (2 * np.arange(pieces) + 1) * (hi[j] - lo[j]) / (2 * pieces) for j in range(m)]
+    centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
+    return centres, np.broadcast_to((hi - lo) / (2 * pieces), centres.shape).copy()
 
 
 class Shared:
@@ -66,8 +138,13 @@ class Shared:
             keep[order[:lo]] = True
             mags.append(mag)
         kept = np.flatnonzero(keep)
+        # a value's rounding: the products' sums over 2K' terms (gamma_{2K'} sum |coef|, |cos|, |sin| <= 1
+        # up to the exponentials' own few ulps) for every basis matrix, and the vertex's sum of R of them
+        every = np.sqrt(Ct[0] ** 2 + Ct[1] ** 2).sum(axis=(0, 1))                             # n x n
+        products = (2 * kept.size + R + 16) * 2.3e-16 * float(np.sqrt((every ** 2).sum())) * 1.5
         self.shift = np.array([float(_spectral_norm(mag[~keep].sum(axis=0))) if (~keep).any() else 0.0
-                               for mag in mags]) + (EVAL_ROUNDING + SERIES_ROUNDING) * scales + rounding   # V
+                               for mag in mags]) + (EVAL_ROUNDING + SERIES_ROUNDING) * scales + rounding \
+            + products                                                                        # V
         self.T2n = np.sqrt((self.T2 ** 2).sum(axis=(-1, -2))).max(axis=0)                   # m x m, the largest
         self.T1n = np.sqrt((self.T1 ** 2).sum(axis=(-1, -2))).max(axis=0)                   # m
         iu = np.triu_indices(n)
@@ -206,6 +283,14 @@ GROUPED_INNER = 4         # inner angles of the grouped stage: the deps nearest 
 GROUPED_BUDGET = 400_000  # cells per decision of the grouped stage (about 0.3 ms a cell on one core)
 
 
+def _one_thread():
+    """BLAS on one thread (threadpoolctl): the stage's products are a few hundred rows by a few thousand,
+    which a second thread speeds by less than it costs in CPU time (as derive's commands do)."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(1, "blas")
+
+
 class GroupedStage:
     """The grouped bound as a stage of derive.control.certificate.ObserverCertificate (opt-in,
     rate 0 only: B majorises J', not 2 beta J): the model of the arm's box shape, the W-dependent
@@ -227,20 +312,22 @@ class GroupedStage:
         """(*) at rate 0 on the box of scale v by the grouped bound (decide_shared)."""
         W = np.asarray(W, dtype=float)
         start = time.perf_counter()
-        try:
-            prep, _ = self._shared(W)
-        except np.linalg.LinAlgError:   # W + W^T not positive definite: nothing to prove with
-            return Decision(Verdict.UNPROVEN, 0, None, None, math.nan, time.perf_counter() - start)
-        dec = decide_shared(self.model, W, v, self.budget, prepared=prep)
+        with _one_thread():
+            try:
+                prep, _ = self._shared(W)
+            except np.linalg.LinAlgError:   # W + W^T not positive definite: nothing to prove with
+                return Decision(Verdict.UNPROVEN, 0, None, None, math.nan, time.perf_counter() - start)
+            dec = decide_shared(self.model, W, v, self.budget, prepared=prep)
         return Decision(dec.verdict, dec.cells, dec.margin, dec.point, dec.low, time.perf_counter() - start)
 
     def supremum(self, W) -> float:
         """Shared.supremum for W (cached): 0 when W + W^T is not positive definite."""
         W = np.asarray(W, dtype=float)
-        try:
-            prep, memo = self._shared(W)
-        except np.linalg.LinAlgError:
-            return 0.0
-        if not memo:
-            memo.append(prep.supremum())
+        with _one_thread():
+            try:
+                prep, memo = self._shared(W)
+            except np.linalg.LinAlgError:
+                return 0.0
+            if not memo:
+                memo.append(prep.supremum())
         return memo[0]

@@ -167,7 +167,7 @@ class Shared:
         out = np.ones((1, c.shape[0]), dtype=complex)
         for j in self.halves[part]:
             z = np.exp(1j * k[:, None] * c[None, :, j])                                   # (2 deg + 1) x P
-            out = (z[:, None, :] * out[None, :, :]).reshape(-1, c.shape[0])
+            out = (out[:, None, :] * z[None, :, :]).reshape(-1, c.shape[0])   # this angle the fastest index
         return out
 
     def values(self, c: np.ndarray) -> np.ndarray:

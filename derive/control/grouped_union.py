@@ -47,9 +47,9 @@ grouped bound refutes nothing).
 
 Measured on the Panda (W synthesised for the 1 rad/s box, inner theta2..theta5, outer theta6,
 theta7; one core): the grouped bound's supremum is about 92 % of N's own numeric supremum, and the
-decision proves 80 % of N's supremum in 75,000 cells (22 s CPU) and 85 % in 107,000 (28 s), about
-0.3 ms a cell. The alternatives measured: one branch and bound per vertex (the same test, one
-vertex's series a cell) needs 45,000-57,000 cells for each of the 64 vertices at 80 % (about 110 s);
+decision proves 80 % of N's supremum in 105,000 cells (22 s CPU) and 85 % in 156,000 (33 s), about
+0.2 ms a cell. The alternatives measured: one branch and bound per vertex (the same test, one
+vertex's series a cell) needs 45,000-57,000 cells for each of the 64 vertices at 80 % (about 110 s at 32 us a cell);
 the Hessian at each centre from the series (derive.control.grouped_cells) costs 4 ms a cell for a
 remainder no smaller on cells of 0.1-0.3 rad.
 """
@@ -280,7 +280,7 @@ def decide_shared(model: GroupedModel, W, v: float, budget: int = 1_000_000, bat
 
 
 GROUPED_INNER = 4         # inner angles of the grouped stage: the deps nearest the base (the wrist's outer)
-GROUPED_BUDGET = 400_000  # cells per decision of the grouped stage (about 0.3 ms a cell on one core)
+GROUPED_BUDGET = 400_000  # cells per decision of the grouped stage (about 0.2 ms a cell on one core)
 
 
 def _one_thread():

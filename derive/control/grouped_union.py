@@ -60,30 +60,14 @@ import time
 
 import numpy as np
 
-from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
+from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _positive_definite, _spectral_norm, \
+    halve_cells
 from derive.control.grouped import GroupedModel
 
 TAIL = 1e-3              # the dropped terms' spectral bound per vertex, relative to || sum_h |C~_h| ||_2
 SERIES_ROUNDING = 1e-11  # relative rounding of B's coefficients (grid values, transform, the vertex's sum)
 EVAL_ROUNDING = 1e-12    # relative rounding of a value from the kept terms (the exponentials of |h.theta| <= 50)
 PIECES = 4               # the first cells: PIECES per angle
-
-
-def positive_definite(A: np.ndarray) -> np.ndarray:
-    """Whether each A[:, :, p] (n x n x P, symmetric) is positive definite: Cholesky without pivoting,
-    each step one array operation over the points (A is overwritten). In floating point a success
-    proves A + E positive definite with ||E||_2 <= n (n + 1) eps n ||A||_2 (Demmel's bound, Higham,
-    Accuracy and Stability of Numerical Algorithms, thm 10.5): below 1e-13 ||A|| for n = 7, which
-    the caller's shift by FLOAT_MARGIN covers (the matrices here are near I in norm)."""
-    n = A.shape[0]
-    ok = np.ones(A.shape[-1], dtype=bool)
-    for k in range(n):
-        pivot = A[k, k]
-        ok &= pivot > 0
-        if k + 1 < n:
-            col = A[k + 1:, k] / np.where(pivot > 0, pivot, 1.0)
-            A[k + 1:, k + 1:] -= col[:, None, :] * A[k, k + 1:][None, :, :]
-    return ok
 
 
 def domain(model: GroupedModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -256,11 +240,12 @@ def decide_shared(model: GroupedModel, W, v: float, budget: int = 1_000_000, bat
         A[iu[1], iu[0]] = up
         base = A.copy()
         A[np.arange(n), np.arange(n)] += 1.0 - need[None]
-        ok = positive_definite(A)
+        # a Cholesky test (certificate._positive_definite; its rounding is below 1e-13 ||A||, A near I here)
+        ok = _positive_definite(np.moveaxis(A, -1, 0))
         if not ok.all():   # the failed pairs: is G_sigma(c) itself positive definite (past the shift)?
             F = base[:, :, ~ok]
             F[np.arange(n), np.arange(n)] += 1.0 - (v * prep.shift[k[~ok]] + tol)[None]
-            bad = ~positive_definite(F.copy())
+            bad = ~_positive_definite(np.moveaxis(F, -1, 0))
             if bad.any():
                 lam = np.linalg.eigvalsh(np.moveaxis(F[:, :, bad], -1, 0))[:, 0] + tol
                 return Decision(Verdict.UNPROVEN, cells, None, None, min(low, float(lam.min())),

@@ -41,7 +41,8 @@ cells are needed by many of them (the Panda: 34 open vertices a cell on average)
 basis matrices' values, not 64 vertices'. A failed cell is halved along the angle of its largest
 term. Values come from the leading frequencies of every vertex (the dropped terms' absolute sum
 bounds their value; T1 and T2 keep every term); the shift subtracted from a value holds that tail,
-the coefficients' and the products' rounding and the transform's (GroupedModel.rounding). A centre
+the coefficients' and the products' rounding and the transform's (GroupedModel.rounding), and the
+test subtracts T S T^T's computed distance from I. A centre
 where G_sigma itself (past the shift) is not positive definite ends the decision: unproven (the
 grouped bound refutes nothing).
 
@@ -95,8 +96,13 @@ class Shared:
     def __init__(self, model: GroupedModel, W: np.ndarray) -> None:
         H, C, basis = model.series()
         n, m = model.n, model.m
-        T = np.linalg.inv(np.linalg.cholesky(W + W.T))
+        S = W + W.T
+        T = np.linalg.inv(np.linalg.cholesky(S))
         Ct = np.einsum("ab,xrkbc,dc->xrkad", T, C, T, optimize=True)                    # 2 x R x K x n x n
+        # T is L^-1 up to rounding: T S T^T >= (1 - gap) I, gap its computed distance from I plus that
+        # product's own rounding (the cell test takes I for T S T^T and subtracts gap)
+        self.gap = float(np.linalg.norm(T @ S @ T.T - np.eye(S.shape[0]))) \
+            + 4 * S.shape[0] ** 2 * 1.2e-16 * float(np.linalg.norm(T)) ** 2 * float(np.linalg.norm(S))
         V, R, K = basis.shape[0], basis.shape[1], H.shape[0]
         Ha = np.abs(H.astype(float))
         rounding = model.rounding * np.linalg.norm(T, 2) ** 2 * (1 + 1e-12)
@@ -170,7 +176,7 @@ class Shared:
         B[..., self.iu[0], self.iu[1]] = up
         B[..., self.iu[1], self.iu[0]] = up
         top = np.linalg.eigvalsh(B)[..., -1] + self.shift[None]
-        return (1.0 - v * top).min(axis=1)
+        return (1.0 - self.gap - v * top).min(axis=1)
 
     def supremum(self, count: int = 2048, starts: int = 6, seed: int = 0) -> float:
         """Numeric estimate of the largest v the grouped bound can prove (an upper bound of it, up to
@@ -182,11 +188,11 @@ class Shared:
         lo, hi = self.lo, self.hi
         rng = np.random.default_rng(seed)
         q = np.vstack([first_cells(lo, hi)[0], lo + (hi - lo) * rng.random((count, self.m))])
-        tops = np.concatenate([1.0 - self.lowest(q[i:i + 512], 1.0) for i in range(0, q.shape[0], 512)])
+        tops = np.concatenate([1.0 - self.gap - self.lowest(q[i:i + 512], 1.0) for i in range(0, q.shape[0], 512)])
         best = float(tops.max())
         for i in np.argsort(-tops)[:starts]:
             def f(x):
-                return float(self.lowest(np.clip(x, lo, hi)[None], 1.0)[0]) - 1.0
+                return float(self.lowest(np.clip(x, lo, hi)[None], 1.0)[0]) - 1.0 + self.gap
 
             res = minimize(f, q[i], method="Nelder-Mead", options={"xatol": 1e-5, "fatol": 1e-9, "maxiter": 600})
             best = max(best, -float(res.fun))
@@ -230,7 +236,7 @@ def decide_shared(model: GroupedModel, W, v: float, budget: int = 1_000_000, bat
         p, k = np.nonzero(o)                                                                 # the open pairs
         quad = np.stack([prep.quad(r) for r in h])                                           # P x V
         face = bounded[None] & ((c - h <= lo + edge) | (c + h >= hi - edge))                 # P x m
-        need = v * prep.shift[k] + v * quad[p, k] + tol                                      # Q
+        need = v * prep.shift[k] + v * quad[p, k] + prep.gap + tol                           # Q
         if face.any():
             fp = face[p].any(axis=1)
             need[fp] += v * _spectral_norm(np.einsum("qj,qjab->qab", (h * face)[p[fp]], prep.T1[k[fp]]))
@@ -244,7 +250,7 @@ def decide_shared(model: GroupedModel, W, v: float, budget: int = 1_000_000, bat
         ok = _positive_definite(np.moveaxis(A, -1, 0))
         if not ok.all():   # the failed pairs: is G_sigma(c) itself positive definite (past the shift)?
             F = base[:, :, ~ok]
-            F[np.arange(n), np.arange(n)] += 1.0 - (v * prep.shift[k[~ok]] + tol)[None]
+            F[np.arange(n), np.arange(n)] += 1.0 - (v * prep.shift[k[~ok]] + prep.gap + tol)[None]
             bad = ~_positive_definite(np.moveaxis(F, -1, 0))
             if bad.any():
                 lam = np.linalg.eigvalsh(np.moveaxis(F[:, :, bad], -1, 0))[:, 0] + tol

@@ -383,9 +383,10 @@ class ObserverCertificate:
     def speed_supremum(self, W, shape, beta: float = 0.0, count: int = 4096, exact: bool = False) -> float:
         """Numeric estimate (an upper bound up to sampling) of the largest v for which (*) holds
         (with a split and not ``exact``: its sound form N_A - U, which is affine in v as N is; the
-        largest of the split's, the ``wider`` split's and, at rate 0, the ``grouped`` stage's): min over samples and vertices of
-        1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A itself fails
-        somewhere."""
+        largest of the split's, the ``wider`` split's and, at rate 0, the ``grouped`` stage's, whose
+        estimate is its own, derive.control.grouped_union.Shared.supremum): min over samples and
+        vertices of 1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A
+        itself fails somewhere."""
         own = self._speed_supremum(W, shape, beta, count, exact)
         if exact:
             return own

@@ -118,7 +118,8 @@ def _positive_definite(A: np.ndarray) -> np.ndarray:
 class ObserverCertificate:
     """Decides (*) for an arm's J: give W, the box shape s (n), its scale v and the rate beta."""
 
-    def __init__(self, model: InertiaModel, shape=None, inner: int = MAX_INNER, wider: bool = False) -> None:
+    def __init__(self, model: InertiaModel, shape=None, inner: int = MAX_INNER, wider: bool = False,
+                 grouped: bool = False) -> None:
         """``shape``: the speed box's shape the split (derive.control.split) is chosen for (ones
         when None); the split is used past MAX_ENUMERATED angles when J is a trigonometric
         polynomial, with ``inner`` angles decided by branch and bound. With ``wider`` such a
@@ -126,16 +127,24 @@ class ObserverCertificate:
         is left), which :meth:`decide` tries when the first is unproven: four angles branched
         instead of three, slower cells but a majorant of fewer terms (the Panda's synthesised W,
         make bench: the box proved grows from 26 % to 34 % of the numeric supremum, and the
-        search's CPU time from seconds to about a minute, which is why it is not the default)."""
+        search's CPU time from seconds to about a minute, which is why it is not the default). With
+        ``grouped`` such a certificate also holds the grouped stage (derive.control.grouped_union:
+        the outer angles' terms bounded group by group, four inner angles on cells shared by the
+        speed vertices), which :meth:`decide` tries last at rate 0 on the box shape it was made for
+        (the Panda's synthesised W: above 80 % of the numeric supremum in under a minute, make bench)."""
         self.model = model
         m = model.m
         self.split: SplitModel | None = None
         self.wider: ObserverCertificate | None = None
+        self.grouped = None
         if m > MAX_ENUMERATED and model.fourier is not None and not model.unbounded:
             self.split = split_model(model, np.ones(model.n) if shape is None else np.asarray(shape, dtype=float),
                                      inner)
             if wider and m > inner + 1:
                 self.wider = ObserverCertificate(model, shape, inner + 1)
+            if grouped:
+                from derive.control.grouped_union import GroupedStage   # imported when asked for
+                self.grouped = GroupedStage(model, np.ones(model.n) if shape is None else shape)
         self.target = self.split if self.split is not None else model
         self.inner = list(self.split.inner) if self.split is not None else list(range(m))
         self.all_signs = np.array(list(itertools.product((1.0, -1.0), repeat=m))) if m else np.zeros((1, 0))
@@ -213,10 +222,16 @@ class ObserverCertificate:
         cells; the decision counts the cells and the time of both)."""
         first = self._decide(W, shape, v, beta, budget, batch)
         if first.verdict is not Verdict.UNPROVEN or self.wider is None:
-            return first
-        second = self.wider._decide(W, shape, v, beta, budget, batch)
-        both = {"cells": first.cells + second.cells, "seconds": first.seconds + second.seconds}
-        return replace(second if second.verdict is Verdict.PROVED else first, **both)
+            result = first
+        else:
+            second = self.wider._decide(W, shape, v, beta, budget, batch)
+            both = {"cells": first.cells + second.cells, "seconds": first.seconds + second.seconds}
+            result = replace(second if second.verdict is Verdict.PROVED else first, **both)
+        if result.verdict is not Verdict.UNPROVEN or not self._grouped_for(shape, beta):
+            return result
+        third = self.grouped.decide(W, v)
+        every = {"cells": result.cells + third.cells, "seconds": result.seconds + third.seconds}
+        return replace(third if third.verdict is Verdict.PROVED else result, **every)
 
     def _decide(self, W: np.ndarray, shape, v: float, beta: float = 0.0, budget: int = DEFAULT_BUDGET,
                 batch: int = 512) -> Decision:
@@ -359,17 +374,27 @@ class ObserverCertificate:
                 centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
 
+    def _grouped_for(self, shape, beta: float) -> bool:
+        """Whether the grouped stage applies: it exists, rate 0, and the box has its shape."""
+        return self.grouped is not None and beta == 0.0 and np.array_equal(
+            np.asarray(shape, dtype=float)[[c.index for c in self.model.deps]], self.grouped.model.shape)
+
     # -- numeric suprema ---------------------------------------------------------------------
     def speed_supremum(self, W, shape, beta: float = 0.0, count: int = 4096, exact: bool = False) -> float:
         """Numeric estimate (an upper bound up to sampling) of the largest v for which (*) holds
         (with a split and not ``exact``: its sound form N_A - U, which is affine in v as N is; the
-        larger of the split's and the ``wider`` split's): min over samples and vertices of
-        1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A itself fails
-        somewhere."""
+        largest of the split's, the ``wider`` split's and, at rate 0, the ``grouped`` stage's, whose
+        estimate is its own, derive.control.grouped_union.Shared.supremum): min over samples and
+        vertices of 1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A
+        itself fails somewhere."""
         own = self._speed_supremum(W, shape, beta, count, exact)
-        if exact or self.wider is None:
+        if exact:
             return own
-        return max(own, self.wider._speed_supremum(W, shape, beta, count, exact))
+        if self.wider is not None:
+            own = max(own, self.wider._speed_supremum(W, shape, beta, count, exact))
+        if self._grouped_for(shape, beta):
+            own = max(own, self.grouped.supremum(W))
+        return own
 
     def _speed_supremum(self, W, shape, beta: float, count: int, exact: bool) -> float:
         q = self.samples(count, exact=exact)

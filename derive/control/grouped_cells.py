@@ -34,7 +34,9 @@ search (unproven: the grouped bound refutes nothing). Values and Hessians at the
 the series, truncated to the frequencies that matter; the dropped terms' absolute sums are added
 (value: to the spectral norm subtracted, Hessian: entrywise), as is the transform's rounding.
 
-Not used by derive.control.certificate: too slow yet. Measured on the Panda (W synthesised for
+Not used by derive.control.certificate: too slow; derive.control.grouped_union decides the same
+claim with a cell test from the coefficients alone (no Hessian series per cell), and is the stage
+ObserverCertificate(grouped=True) uses. Measured on the Panda (W synthesised for
 the 1 rad/s box, inner angles theta2..theta5, outer theta6, theta7; one core): the grouped bound's
 sampled supremum is 3.67, 94 % of N's own numeric supremum 3.92 (the constant majorant of
 derive.control.split: 26 %), but one decision proves 30 % of it in 6,016 cells (23 s CPU) and 40 %

@@ -22,6 +22,7 @@ import derive
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
 from derive.codegen.kernels import ParamsMode
+from derive.model.examples import planar_chain
 
 from .cbuild import STRICT
 
@@ -52,15 +53,15 @@ def trees(tmp_path_factory) -> dict[tuple[str, str], Path]:
     return out
 
 
-def build(cc: str, flags: str, c_dir: Path, driver: Path, out: Path, runtime: bool = False) -> Path:
+def build(cc: str, flags: str, c_dir: Path, driver: Path, out: Path, runtime: bool = False, arm: str = ARM) -> Path:
     """The library built with ``flags``, the driver without finite-math flags (same -flto)."""
     lib_flags = flags.split()
     lto = ["-flto"] if "-flto" in lib_flags else []
-    defines = [f"-DARM={ARM}", f"-DARM_UPPER={ARM.upper()}", f'-DARM_H="{ARM}.h"', f"-I{c_dir}"]
+    defines = [f"-DARM={arm}", f"-DARM_UPPER={arm.upper()}", f'-DARM_H="{arm}.h"', f"-I{c_dir}"]
     defines += ["-DRUNTIME"] if runtime else []
     objects = []
-    for src, own in ((driver, ["-O2", *lto, *defines]), (c_dir / f"{ARM}.c", [*lib_flags, f"-I{c_dir}"]),
-                     (c_dir / f"{ARM}_kernels.c", [*lib_flags, f"-I{c_dir}"])):
+    for src, own in ((driver, ["-O2", *lto, *defines]), (c_dir / f"{arm}.c", [*lib_flags, f"-I{c_dir}"]),
+                     (c_dir / f"{arm}_kernels.c", [*lib_flags, f"-I{c_dir}"])):
         obj = out.parent / f"{out.name}_{src.stem}.o"
         cmd = [cc, *STRICT, *own, "-c", str(src), "-o", str(obj)]
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
@@ -78,17 +79,42 @@ def run(exe: Path, *args: str) -> str:
     return proc.stdout
 
 
+def cases(n: int) -> str:
+    """The last line of tests/fuzz/nonfinite_cases.c for an n-joint arm when every case passes:
+    60 cases of their own, and 114 per joint (a NaN, Inf and -Inf in the joint's element of each
+    of the 5 input fields, 7 entry points each; of each step's state, 3 steps)."""
+    return f"{60 + 114 * n} cases, 0 failed"
+
+
 @pytest.mark.parametrize("real", ["double", "float"])
 @pytest.mark.parametrize("cc,flags", FINITE_MATH, ids=[f"{c} {f}" for c, f in FINITE_MATH])
 def test_error_codes_hold_under_finite_math_flags(trees, tmp_path, cc, flags, real):
     exe = build(cc, flags, trees[real, "baked"], CASES, tmp_path / "cases")
-    assert run(exe).strip().splitlines()[-1] == "43 cases, 0 failed"
+    assert run(exe).strip().splitlines()[-1] == cases(2)
 
 
 def test_error_codes_hold_under_finite_math_flags_with_runtime_parameters(trees, tmp_path):
     for cc in ("gcc", "clang"):
         exe = build(cc, "-Ofast", trees["double", "runtime"], CASES, tmp_path / f"cases_{cc}", runtime=True)
-        assert run(exe).strip().splitlines()[-1] == "43 cases, 0 failed"
+        assert run(exe).strip().splitlines()[-1] == cases(2)
+
+
+@pytest.fixture(scope="module")
+def chain5(tmp_path_factory) -> dict[str, Path]:
+    """The 5-link chain (5 n = 25 input values, 5 state values: whole groups of the glue's lanes
+    and a tail after them) in double and float."""
+    d = derive.derive(planar_chain(5, gravity=9.81))
+    root = tmp_path_factory.mktemp("finite_math_chain5")
+    for real in ("double", "float"):
+        write_tree(root / real, generate_files(d, b"", real, ParamsMode.BAKED))
+    return {real: root / real / "c" for real in ("double", "float")}
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+@pytest.mark.parametrize("cc,flags", [("gcc", "-O2"), ("gcc", "-Ofast"), ("clang", "-Ofast")])
+def test_a_nonfinite_value_in_any_element_of_five_joints_gives_the_error_code(chain5, tmp_path, cc, flags, real):
+    exe = build(cc, flags, chain5[real], CASES, tmp_path / "cases", arm="chain5")
+    assert run(exe).strip().splitlines()[-1] == cases(5)
 
 
 def test_the_cases_fail_where_isfinite_is_folded_away(trees, tmp_path):

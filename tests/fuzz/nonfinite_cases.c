@@ -6,7 +6,7 @@
  * (-ffast-math, -Ofast, -ffinite-math-only, -fno-honor-nans, ...): the library's checks
  * must survive those flags (issue 10, item 3). Compile with -DARM=<arm>
  * -DARM_UPPER=<ARM> -DARM_H='"<arm>.h"' [-DRUNTIME]. Prints one line per failed case
- * and "N cases, N failed"; exits non-zero on any failure. */
+ * and "N cases, N failed" (the count depends on the arm's n); exits non-zero on any failure. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -59,6 +59,7 @@ static void all_refuse(const char *what, T(input) in, real dt, int code_in, int 
 {
     T(npid_state) ns, ns0;
     T(dobc_state) ds, ds0;
+    T(mom_state) ms, ms0;
     T(input) good = ordinary();
     real u[NJ], u0[NJ];
     char label[160];
@@ -66,13 +67,18 @@ static void all_refuse(const char *what, T(input) in, real dt, int code_in, int 
     for (i = 0; i < NJ; ++i) u[i] = u0[i] = (real)12345.0;
     T(npid_init)(P &ns, &good);
     T(dobc_init)(P &ds, &good);
+    T(mom_init)(P &ms, &good);
     ns0 = ns;
     ds0 = ds;
+    ms0 = ms;
     snprintf(label, sizeof label, "npid_step, %s", what);
     expect(label, T(npid_step)(P &ns, &in, dt, u, NULL) == code_dt && !memcmp(&ns, &ns0, sizeof ns)
                   && !memcmp(u, u0, sizeof u));
     snprintf(label, sizeof label, "dobc_step, %s", what);
     expect(label, T(dobc_step)(P &ds, &in, dt, u, NULL) == code_dt && !memcmp(&ds, &ds0, sizeof ds)
+                  && !memcmp(u, u0, sizeof u));
+    snprintf(label, sizeof label, "mom_step, %s", what);
+    expect(label, T(mom_step)(P &ms, &in, dt, u, NULL) == code_dt && !memcmp(&ms, &ms0, sizeof ms)
                   && !memcmp(u, u0, sizeof u));
     if (code_in != -1) {
         snprintf(label, sizeof label, "mpc_step, %s", what);
@@ -83,7 +89,56 @@ static void all_refuse(const char *what, T(input) in, real dt, int code_in, int 
         expect(label, T(dobc_init)(P &ds, &in) == code_in && !memcmp(&ds, &ds0, sizeof ds));
         snprintf(label, sizeof label, "npid_init, %s", what);
         expect(label, T(npid_init)(P &ns, &in) == code_in && !memcmp(&ns, &ns0, sizeof ns));
+        snprintf(label, sizeof label, "mom_init, %s", what);
+        expect(label, T(mom_init)(P &ms, &in) == code_in && !memcmp(&ms, &ms0, sizeof ms));
     }
+}
+
+/* A NaN, Inf and -Inf in each element of each input field and of each step's state, one at
+ * a time: the glue reads the input as one array of 5 n reals and the values in lanes, so
+ * that no position (a lane, the tail after the last whole group of lanes) goes unread. */
+static void every_element(real dt, real nan_, real inf)
+{
+    const real bad[3] = { nan_, inf, -inf };
+    const char *bad_name[3] = { "NaN", "Inf", "-Inf" }, *field_name[5] = { "theta", "dtheta", "yd", "dyd", "ddyd" };
+    T(input) in, good = ordinary();
+    T(npid_state) ns, ns0;
+    T(dobc_state) ds, ds0;
+    T(mom_state) ms, ms0;
+    real u[NJ], u0[NJ], *field[5];
+    char label[160];
+    int f, i, b;
+    for (i = 0; i < NJ; ++i) u[i] = u0[i] = (real)12345.0;
+    for (f = 0; f < 5; ++f)
+        for (i = 0; i < NJ; ++i)
+            for (b = 0; b < 3; ++b) {
+                in = ordinary();
+                field[0] = in.theta; field[1] = in.dtheta; field[2] = in.yd; field[3] = in.dyd; field[4] = in.ddyd;
+                field[f][i] = bad[b];
+                snprintf(label, sizeof label, "%s[%d] = %s", field_name[f], i, bad_name[b]);
+                all_refuse(label, in, dt, C(ENONFINITE), C(ENONFINITE));
+            }
+    for (i = 0; i < NJ; ++i)
+        for (b = 0; b < 3; ++b) {
+            T(npid_init)(P &ns, &good);
+            T(dobc_init)(P &ds, &good);
+            T(mom_init)(P &ms, &good);
+            ns.int_e[i] = bad[b];
+            ds.z[i] = bad[b];
+            ms.m[i] = bad[b];
+            ns0 = ns;
+            ds0 = ds;
+            ms0 = ms;
+            snprintf(label, sizeof label, "npid_step, int_e[%d] = %s", i, bad_name[b]);
+            expect(label, T(npid_step)(P &ns, &good, dt, u, NULL) == C(ENONFINITE) && !memcmp(&ns, &ns0, sizeof ns)
+                          && !memcmp(u, u0, sizeof u));
+            snprintf(label, sizeof label, "dobc_step, z[%d] = %s", i, bad_name[b]);
+            expect(label, T(dobc_step)(P &ds, &good, dt, u, NULL) == C(ENONFINITE) && !memcmp(&ds, &ds0, sizeof ds)
+                          && !memcmp(u, u0, sizeof u));
+            snprintf(label, sizeof label, "mom_step, m[%d] = %s", i, bad_name[b]);
+            expect(label, T(mom_step)(P &ms, &good, dt, u, NULL) == C(ENONFINITE) && !memcmp(&ms, &ms0, sizeof ms)
+                          && !memcmp(u, u0, sizeof u));
+        }
 }
 
 int main(void)
@@ -98,6 +153,7 @@ int main(void)
     T(input) in;
     T(npid_state) ns, ns0;
     T(dobc_state) ds, ds0;
+    T(mom_state) ms;
     real u[NJ], u0[NJ];
     int i, k;
 #ifdef RUNTIME
@@ -133,12 +189,16 @@ int main(void)
     expect("dobc_step, z[n-1] = -Inf", T(dobc_step)(P &ds, &in, dt, u, NULL) == C(ENONFINITE)
            && !memcmp(&ds, &ds0, sizeof ds) && !memcmp(u, u0, sizeof u));
 
+    every_element(dt, nan_, inf);
+
     /* and the ordinary case still succeeds with finite results */
     T(npid_init)(P &ns, &in);
     T(dobc_init)(P &ds, &in);
     expect("npid_step, ordinary input", T(npid_step)(P &ns, &in, dt, u, NULL) == C(OK) && isfinite(u[0]));
     expect("dobc_step, ordinary input", T(dobc_step)(P &ds, &in, dt, u, NULL) == C(OK) && isfinite(u[0]));
     expect("mpc_step, ordinary input", T(mpc_step)(P &in, u, NULL) == C(OK) && isfinite(u[0]));
+    T(mom_init)(P &ms, &in);
+    expect("mom_step, ordinary input", T(mom_step)(P &ms, &in, dt, u, NULL) == C(OK) && isfinite(u[0]));
 
     printf("%d cases, %d failed\n", cases, failed);
     return failed != 0;

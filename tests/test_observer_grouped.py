@@ -202,3 +202,29 @@ def test_grouped_stage_proves_80_percent_of_the_panda_supremum_and_the_adversary
     assert dec.verdict is cert.Verdict.PROVED
     assert proved >= 0.8 * c.speed_supremum(W, np.ones(7), exact=True)
     assert search(model, W, [proved] * 7).low > 0
+
+
+def test_grouped_stage_reads_a_negative_scale_as_its_box_and_refuses_what_it_cannot_weigh(ur5):
+    """A negative v is the box of |v| (the vertices are symmetric; I - v B~ holds the majorant only
+    for v >= 0): beyond N's own numeric supremum -v proves nothing, below it the same cells as v. A
+    non-finite v or W proves nothing, without an exception; a box shape with a joint J depends on at
+    rest (0) gets no grouped stage (its vertex weights divide by the shape) and decides without it."""
+    from derive.control.grouped_union import Shared, decide_shared
+
+    d = derive.derive(derive.load_arm("planar_3link"))
+    model = cert_report.inertia_model(d)
+    W = np.array(d.W.tolist(), dtype=float)
+    g = GroupedModel(model, (0,), np.ones(d.n))
+    prep = Shared(g, W)
+    exact = cert.ObserverCertificate(model).speed_supremum(W, np.ones(d.n), exact=True)
+    assert decide_shared(g, W, -1.05 * exact, budget=20_000, prepared=prep).verdict is cert.Verdict.UNPROVEN
+    up, down = decide_shared(g, W, 0.5 * exact, prepared=prep), decide_shared(g, W, -0.5 * exact, prepared=prep)
+    assert up.verdict is down.verdict is cert.Verdict.PROVED and up.cells == down.cells
+    for v, bad in ((np.nan, W), (np.inf, W), (0.5 * exact, np.where(np.eye(d.n) > 0, np.inf, W))):
+        assert decide_shared(g, bad, v, prepared=None).verdict is cert.Verdict.UNPROVEN
+    _, ur5_model = ur5
+    shape = np.ones(6)
+    shape[[c.index for c in ur5_model.deps][2]] = 0.0
+    c = cert.ObserverCertificate(ur5_model, shape, grouped=True)
+    assert c.grouped is None
+    assert c.decide(3.0 * np.eye(6), shape, 0.1, budget=300).verdict in tuple(cert.Verdict)

@@ -131,7 +131,9 @@ class ObserverCertificate:
         ``grouped`` such a certificate also holds the grouped stage (derive.control.grouped_union:
         the outer angles' terms bounded group by group, four inner angles on cells shared by the
         speed vertices), which :meth:`decide` tries last at rate 0 on the box shape it was made for
-        (the Panda's synthesised W: above 80 % of the numeric supremum in under a minute, make bench)."""
+        (the Panda's synthesised W: above 80 % of the numeric supremum in under a minute, make bench);
+        not on a shape that holds a joint J depends on at rest (0: the stage weighs the vertices by
+        1 / shape)."""
         self.model = model
         m = model.m
         self.split: SplitModel | None = None
@@ -142,9 +144,10 @@ class ObserverCertificate:
                                      inner)
             if wider and m > inner + 1:
                 self.wider = ObserverCertificate(model, shape, inner + 1)
-            if grouped:
+            box = np.ones(model.n) if shape is None else np.asarray(shape, dtype=float)
+            if grouped and np.all(box[[c.index for c in model.deps]] > 0):   # a joint at rest: no vertex weights
                 from derive.control.grouped_union import GroupedStage   # imported when asked for
-                self.grouped = GroupedStage(model, np.ones(model.n) if shape is None else shape)
+                self.grouped = GroupedStage(model, box)
         self.target = self.split if self.split is not None else model
         self.inner = list(self.split.inner) if self.split is not None else list(range(m))
         self.all_signs = np.array(list(itertools.product((1.0, -1.0), repeat=m))) if m else np.zeros((1, 0))

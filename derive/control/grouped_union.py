@@ -212,9 +212,14 @@ def decide_shared(model: GroupedModel, W, v: float, budget: int = 1_000_000, bat
     bound refutes nothing). W: n x n [N m s/rad]; v: the box's scale (v times the model's shape,
     rad/s); budget: cells examined at most. The margin is FLOAT_MARGIN's: a passed cell's slack
     is only known to exceed it (a Cholesky test); low: the smallest lambda_min(G_sigma) (past the
-    shift) at the first cells' centres, or at the centre that ends an unproven decision."""
+    shift) at the first cells' centres, or at the centre that ends an unproven decision. The box
+    is symmetric, so v and -v are the same box (as derive.control.certificate reads them: G = I -
+    v B~ holds B~'s bound only for v >= 0); a non-finite v or W proves nothing."""
     start = time.perf_counter()
     W = np.asarray(W, dtype=float)
+    if not (math.isfinite(v) and np.all(np.isfinite(W))):
+        return Decision(Verdict.UNPROVEN, 0, None, None, math.nan, time.perf_counter() - start)
+    v = abs(float(v))
     try:
         prep = Shared(model, W) if prepared is None else prepared
     except np.linalg.LinAlgError:

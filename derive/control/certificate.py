@@ -140,11 +140,10 @@ class ObserverCertificate:
         self.wider: ObserverCertificate | None = None
         self.grouped = None
         if m > MAX_ENUMERATED and model.fourier is not None and not model.unbounded:
-            self.split = split_model(model, np.ones(model.n) if shape is None else np.asarray(shape, dtype=float),
-                                     inner)
+            box = np.ones(model.n) if shape is None else np.asarray(shape, dtype=float)
+            self.split = split_model(model, box, inner)
             if wider and m > inner + 1:
                 self.wider = ObserverCertificate(model, shape, inner + 1)
-            box = np.ones(model.n) if shape is None else np.asarray(shape, dtype=float)
             if grouped and np.all(box[[c.index for c in model.deps]] > 0):   # a joint at rest: no vertex weights
                 from derive.control.grouped_union import GroupedStage   # imported when asked for
                 self.grouped = GroupedStage(model, box)

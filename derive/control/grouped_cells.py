@@ -53,6 +53,7 @@ import numpy as np
 
 from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
 from derive.control.grouped import GroupedModel
+from derive.control.grouped_union import domain, first_cells
 
 TAIL = 2e-3          # the dropped terms' spectral bound, relative to || sum_h |C~_h| ||_2: what the truncation may cost
 SERIES_ROUNDING = 1e-11   # relative rounding of B's coefficients (the grid values and the transform)
@@ -155,15 +156,8 @@ def decide_grouped(model: GroupedModel, W, v: float, budget: int = 200_000, batc
     index = {p: i for i, p in enumerate(pairs)}
     pos = np.array([[index[(min(j, k), max(j, k))] for k in range(m)] for j in range(m)])      # m x m
     shift = v * (prep.rounding + prep.tail0)                                                      # V
-    # an inner angle whose limits span less than a turn ranges over them (its faces need the first-order term)
-    bounded = np.array([not model.full.periodic[k] and span[1] - span[0] < 2 * math.pi
-                        for k, span in zip(model.inner, model.spans)], dtype=bool)
-    lo = np.array([span[0] if b else -math.pi for span, b in zip(model.spans, bounded)])
-    hi = np.array([span[1] if b else math.pi for span, b in zip(model.spans, bounded)])
-    pieces = 4
-    axes = [lo[j] + (2 * np.arange(pieces) + 1) * (hi[j] - lo[j]) / (2 * pieces) for j in range(m)]
-    centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
-    halves = np.broadcast_to((hi - lo) / (2 * pieces), centres.shape).copy()
+    lo, hi, bounded = domain(model)
+    centres, halves = first_cells(lo, hi)
     edge = 1e-9 * (1 + np.abs(lo) + np.abs(hi))
     cells, margin, low = 0, math.inf, math.inf
     eye = np.eye(n)

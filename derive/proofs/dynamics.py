@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import flint
 import sympy as sp
 
-from derive.dynamics.dag import Memo, xreplace
+from derive.dynamics.dag import xreplace_all
 from derive.proofs.core import Kind, Obligation, Outcome, Status, combine
 from derive.proofs.structure import affine_apart, same
 from derive.proofs.torus import TooLarge, Torus
@@ -118,10 +118,9 @@ def check_energy(d: "Derivation") -> Outcome:
     gs = _gravity_symbol(d)
     split = same(list(dyn.G), list(dyn.bias + dyn.damping * sp.Matrix(dq)))
     if gs is not None:
-        memo = Memo()
         split = split and affine_apart(list(dyn.bias), [gs], dq) and same(
-            [xreplace(x, {gs: sp.Integer(0)}, memo, keep_sums=True) for x in dyn.bias], list(dyn.velocity_bias))
-        at_rest = [xreplace(x, {v: sp.Integer(0) for v in dq}, Memo(), keep_sums=True) for x in d.numeric(dyn.bias)]
+            xreplace_all(dyn.bias, {gs: sp.Integer(0)}, keep_sums=True), list(dyn.velocity_bias))
+        at_rest = xreplace_all(d.numeric(dyn.bias), {v: sp.Integer(0) for v in dq}, keep_sums=True)
         grav = d.numeric(dyn.gravity)
         split = split and all(T.is_zero(T(a) - T(b)) for a, b in zip(at_rest, grav))
     else:
@@ -160,13 +159,12 @@ def check_rnea_law(d: "Derivation") -> Outcome:
     e, de, ddyd = sp.Matrix(s.e), sp.Matrix(s.de), sp.Matrix(s.ddyd)
     aexpr = mpc.Cout.inv() * (mpc.K1 * e + mpc.K2 * de + ddyd)
     Binv = [1 / dyn.B[i, i] for i in range(n)]
-    memo = Memo()
-    law = [Binv[i] * xreplace(Rn[i], dict(zip(a, aexpr)), memo, keep_sums=True) for i in range(n)]
+    law = [b * x for b, x in zip(Binv, xreplace_all(Rn, dict(zip(a, aexpr)), keep_sums=True))]
     steps = [("the generated law is B^-1 RNEA(theta, theta', a) at a = C^-1 (K1 e + K2 e' + yd'')",
               same(law, list(mpc.u_star_rnea))),
              ("RNEA is affine in a, with no a theta' product", affine_apart(list(Rn), a, list(d.dtheta))),
-             ("RNEA at a = 0 is G", same([xreplace(x, {v: sp.Integer(0) for v in a}, Memo(), keep_sums=True)
-                                           for x in Rn], list(dyn.G)))]
+             ("RNEA at a = 0 is G", same(xreplace_all(Rn, {v: sp.Integer(0) for v in a}, keep_sums=True),
+                                          list(dyn.G)))]
     if not all(ok for _, ok in steps):       # not the structure built by derive: decide the identity whole
         return _whole_rnea_law(d)
     # the a-coefficient, at theta' = 0 (it has no theta'): d RNEA(q, 0, a) / d a_j = J e_j, one
@@ -175,7 +173,7 @@ def check_rnea_law(d: "Derivation") -> Outcome:
     T = Torus(d.dynamics.angles, [q for q in d.theta if q not in rotating] + a, limit=LIMIT)
     num = d.numeric(Rn)
     rest = {v: sp.Integer(0) for v in d.dtheta}
-    rows = T.convert(xreplace(x, rest, Memo(), keep_sums=True) for x in num)
+    rows = T.convert(xreplace_all(num, rest, keep_sums=True))
     J = T.convert(list(d.J))
     for i in range(n):
         for j in range(n):

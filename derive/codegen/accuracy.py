@@ -4,7 +4,11 @@ output, derived from the kernels' own instruction lists.
 Every instruction the printer emits rounds its exact result once, by a
 relative error of at most u (the unit roundoff of the real type: 2^-53
 double, 2^-24 float) for + - * / sqrt, and at most 1 ulp = 2u for the libm
-calls (sin, cos, tan, exp, log, pow); negation, fabs and doubling are exact.
+calls (tan, exp, log, pow); negation, fabs and doubling are exact. Sine and
+cosine are the C files' own (derive.codegen.trig), with the proved mixed bound
+|f_hat - f| <= eps |f| + (1 + eps) eta(k), eta growing with the quadrant count
+k of the argument: the term added for such a site is |dy/dv| (eps |v| + (1 + eps)
+eta(k)), k bounded from the argument's value (trig.k_max).
 A constant carries the rounding of its exact rational to double and then to
 the real type (u + 2^-53); an input, when it is not exact in the real type,
 one rounding. Writing each rounding as v_k (1 + eps_k), the error of an
@@ -33,28 +37,32 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 
+from derive.codegen import trig
 from derive.codegen.casadi_bridge import to_function
 from derive.dynamics.sx import _number
 from derive.codegen.kernels import KernelSpec
 from derive.errors import DerivationError
 
 UNIT = {"double": 2.0 ** -53, "float": 2.0 ** -24}
-OP, LIBM, CONST, INPUT = range(4)   # kinds of rounding site
+OP, LIBM, CONST, INPUT, TRIG = range(5)   # kinds of rounding site
+TRIG_K, TRIG_FIXED = 5, 6                  # weights(): eta(k) = |k| w[TRIG_K] + w[TRIG_FIXED] (k != 0)
 LEAF, SELECT = -1, -2               # tape-only nodes: an external input, the glue's clip
 
 # op -> kind of rounding of the printed instruction (None: exact); see printing._OPS
 _ROUNDING = {
     ca.OP_ASSIGN: None, ca.OP_NEG: None, ca.OP_FABS: None, ca.OP_TWICE: None, ca.OP_FLOOR: None,
     ca.OP_ADD: OP, ca.OP_SUB: OP, ca.OP_MUL: OP, ca.OP_DIV: OP, ca.OP_SQ: OP, ca.OP_INV: OP, ca.OP_SQRT: OP,
-    ca.OP_SIN: LIBM, ca.OP_COS: LIBM, ca.OP_TAN: LIBM, ca.OP_EXP: LIBM, ca.OP_LOG: LIBM,
+    ca.OP_SIN: TRIG, ca.OP_COS: TRIG, ca.OP_TAN: LIBM, ca.OP_EXP: LIBM, ca.OP_LOG: LIBM,
     ca.OP_POW: LIBM, ca.OP_CONSTPOW: LIBM,
 }
 
 
 def weights(real: str, exact_inputs: bool = True) -> np.ndarray:
-    """Bounds on |eps| per kind of site: operation, libm call, constant, input."""
+    """Bounds on |eps| per kind of site: operation, libm call, constant, input, own sine or
+    cosine (relative part); then the sine's and cosine's eta per quadrant and fixed part."""
     u = UNIT[real]
-    return np.array([u, 2 * u, u + UNIT["double"], 0.0 if exact_inputs else u])
+    b = trig.bound(real)
+    return np.array([u, 2 * u, u + UNIT["double"], 0.0 if exact_inputs else u, b.relative, b.per_k, b.fixed])
 
 
 def _forward(op: int, a: np.ndarray, b: np.ndarray | None) -> np.ndarray:
@@ -195,7 +203,11 @@ class Tape:
                 if a is None:
                     continue
                 kind = self.kind[k]
-                if kind is not None:
+                if kind == TRIG:
+                    quadrants = trig.k_max(val[self.args[k][0]])
+                    eta = np.where(quadrants > 0, quadrants * w[TRIG_K] + w[TRIG_FIXED], 0.0)
+                    bound += np.abs(a) * (np.abs(val[k]) * w[TRIG] + (1 + w[TRIG]) * eta)
+                elif kind is not None:
                     bound += np.abs(a * val[k]) * w[kind]
                 if k in position:
                     jac[:, position[k], :] = a

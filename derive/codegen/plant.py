@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.codegen.kernels import KernelSpec, LinearSolve, ParamsMode, Port
-from derive.codegen.views import ArmView, KernelView, kernel_view
+from derive.codegen.views import ArmView, KernelView, kernel_view, trig_helper
 from derive.control.pipeline import Derivation
 
 # Name of each exported function and what it returns, for headers and docstrings.
@@ -111,6 +111,7 @@ class PlantView:
 
     kernels: tuple[KernelView, ...]
     functions: tuple[PlantFunction, ...]
+    trig_helper: tuple[str, ...] = ()     # the file's own sin and cos (derive.codegen.trig), when used
 
 
 def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
@@ -129,7 +130,8 @@ def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
                              matrix=k.name in ("mass_matrix", "input_matrix"), doc=docs[k.name])
 
     functions = tuple(function(k) for k in specs)
-    return PlantView(kernels=tuple(kernel_view(k, real, d.arm.name) for k in specs), functions=functions)
+    kernels = tuple(kernel_view(k, real, d.arm.name) for k in specs)
+    return PlantView(kernels=kernels, functions=functions, trig_helper=trig_helper(kernels, real, d.arm.name))
 
 
 def plant_c_files(d: Derivation, v: ArmView, mode: ParamsMode) -> dict[str, str]:

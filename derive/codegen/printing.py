@@ -58,6 +58,9 @@ _OPS: dict[int, tuple[str, str]] = {
 }
 
 
+_TRIG = {ca.OP_SIN: "trig_sin({0})", ca.OP_COS: "trig_cos({0})"}   # own_trig (derive.codegen.trig)
+
+
 @dataclass(frozen=True)
 class Printed:
     """A kernel's body: register count, statements, and operation count."""
@@ -166,11 +169,44 @@ def _python_statements(f: ca.Function, ins: tuple[str, ...], outs: tuple[str, ..
     return lines + [f"{outs[port]} = [{', '.join(e)}]" for port, e in enumerate(entries)]
 
 
+def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], set[int]], set[int]]:
+    """The input entries (port, index) whose sine or cosine ``f`` takes directly, in order, each
+    with the operations taken (OP_SIN, OP_COS); and the input loads (instruction numbers) whose
+    value is used otherwise (the others are not printed: their entry goes to trig_sincos)."""
+    holds: dict[int, tuple[tuple[int, int], int]] = {}   # register -> (input entry, its load)
+    found: dict[tuple[int, int], set[int]] = {}
+    used: set[int] = set()
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        args = f.instruction_input(k)
+        if op not in (ca.OP_INPUT, ca.OP_CONST):
+            for a in (args[:1] if op == ca.OP_OUTPUT else args):
+                if a in holds:
+                    if op in (ca.OP_SIN, ca.OP_COS):
+                        found.setdefault(holds[a][0], set()).add(op)
+                    else:
+                        used.add(holds[a][1])
+        if op == ca.OP_OUTPUT:
+            continue
+        reg = f.instruction_output(k)[0]
+        if op == ca.OP_INPUT:
+            holds[reg] = (tuple(args), k)
+        else:
+            holds.pop(reg, None)
+    return found, used
+
+
 def print_function(f: ca.Function, language: str, real: str = "double",
-                   inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None) -> Printed:
+                   inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None,
+                   own_trig: bool = False) -> Printed:
     """Statements computing ``f``; inputs and outputs are addressed as ``<port>[k]`` by port
     name (C arrays or Python sequences). C: one statement per instruction, registers ``a0..``;
-    Python: the same operations as fewer statements (:func:`_python_statements`)."""
+    Python: the same operations as fewer statements (:func:`_python_statements`).
+
+    ``own_trig`` (C): sin and cos call the file's ``trig_sincos`` (derive.codegen.trig.c_helper)
+    instead of libm; those of an input entry are computed first (``trig_sincos``, both at once),
+    into two registers of their own, so that they overlap with the rest of the kernel, and the
+    entry's load is printed only when something else reads it."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -178,11 +214,29 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     lines: list[str] = []
     ops = 0
     read: set[int] = set()
+    hoisted, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, set())
+    trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # (entry, OP_SIN / OP_COS) -> its register
+    for entry in hoisted:
+        for op in (ca.OP_SIN, ca.OP_COS):
+            trig_reg[entry, op] = f.sz_w() + len(trig_reg)
+        read.add(entry[0])
+        lines.append(f"trig_sincos({ins[entry[0]]}[{entry[1]}], &a{trig_reg[entry, ca.OP_SIN]}, "
+                     f"&a{trig_reg[entry, ca.OP_COS]});")
+    holds: dict[int, tuple[int, int]] = {}
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
         args = f.instruction_input(k)
         res = f.instruction_output(k)
-        if op == ca.OP_INPUT:
+        entry = holds.get(args[0]) if op in (ca.OP_SIN, ca.OP_COS) else None
+        if op != ca.OP_OUTPUT:
+            holds.pop(res[0], None)        # the register is written: it no longer holds an input entry
+        if entry in hoisted:
+            lines.append(f"a{res[0]} = a{trig_reg[entry, op]};")
+            ops += 1
+        elif op == ca.OP_INPUT:
+            holds[res[0]] = tuple(args)
+            if hoisted and k not in loads:
+                continue   # its entry only goes to the trig call
             read.add(args[0])
             lines.append(f"a{res[0]} = {ins[args[0]]}[{args[1]}];")
         elif op == ca.OP_OUTPUT:
@@ -192,7 +246,7 @@ def print_function(f: ca.Function, language: str, real: str = "double",
                 lines.append(f"a{res[0]} = {c_literal(f.instruction_constant(k), real)};")
         else:
             try:
-                template = _OPS[op][0]
+                template = _TRIG[op] if own_trig and op in _TRIG else _OPS[op][0]
             except KeyError:
                 raise DerivationError(f"kernel {f.name()}: CasADi operation {op} has no printer") from None
             lines.append(f"a{res[0]} = " + template.format(*(f"a{a}" for a in args), f=suffix, one=one) + ";")
@@ -200,4 +254,5 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     if language != "c":
         lines = _python_statements(f, ins, outs)
     unused = tuple(name for i, name in enumerate(ins) if i not in read)
-    return Printed(registers=f.sz_w(), statements=tuple(lines), operations=ops, unused_inputs=unused)
+    return Printed(registers=f.sz_w() + len(trig_reg), statements=tuple(lines), operations=ops,
+                   unused_inputs=unused)

@@ -29,7 +29,7 @@ from derive.codegen.printing import c_literal, expected_literal, py_literal
 from derive.codegen.reference import PRECISION, Reference, certified
 from derive.codegen.render import render
 from derive.codegen.testvectors import DOUBLE_TOL, float_bound
-from derive.codegen.views import ArmView, KernelView, comment_text, kernel_view
+from derive.codegen.views import ArmView, KernelView, comment_text, kernel_view, trig_helper
 from derive.control.pipeline import Derivation
 from derive.errors import DerivationError
 from derive.identify.regressor import Regressor, derive_regressor
@@ -91,6 +91,7 @@ class RegressorView:
     values: tuple[str, ...]            # the arm file's pi, C literals of the real type
     py_values: tuple[str, ...]
     absent: tuple[str, ...]            # standard combinations the dynamics do not see
+    trig_helper: tuple[str, ...] = ()  # the file's own sin and cos (derive.codegen.trig), when used
 
 
 @dataclass(frozen=True)
@@ -111,7 +112,8 @@ def regressor_view(reg: Regressor, real: str, prefix: str) -> RegressorView:
     for k, b in enumerate(reg.base):
         lines.append(comment_text(f"{k:2d} {b.name} = {b.text()} [{b.unit}]"))
         py.append((b.name, comment_text(b.text()), b.unit))
-    return RegressorView(kernel=kernel_view(regressor_spec(reg), real, prefix), p=reg.p, names=reg.names,
+    kernel = kernel_view(regressor_spec(reg), real, prefix)
+    return RegressorView(kernel=kernel, trig_helper=trig_helper((kernel,), real, prefix), p=reg.p, names=reg.names,
                          lines=tuple(lines), py_params=tuple(py), values=tuple(c_literal(v, real) for v in pi),
                          py_values=tuple(py_literal(v) for v in pi),
                          absent=tuple(comment_text(a) for a in reg.absent))

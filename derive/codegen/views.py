@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 import textwrap
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,7 @@ from derive.errors import Problem, SpecError
 from derive.model.actuators import input_word, units_text
 from derive.model.spec import gain_units_text, observer_parameters
 from derive.codegen.printing import c_literal, print_function, py_literal
+from derive.codegen.trig import c_helper
 
 def comment_text(text: str) -> str:
     """``text`` safe inside a C block comment and a Python docstring alike:
@@ -82,6 +84,16 @@ class ArmView:
     u_unit: str = "V"                           # its unit: V, N m, or one per motor
     ldl_size: int = 0                           # reals of the LDL^T factor of J the DOBC step passes on
     trig_size: int = 0                          # sines and cosines the dobc kernel passes to dobc_factor
+    trig_helper: tuple[str, ...] = ()           # the C file's own sin and cos (derive.codegen.trig), when used
+
+
+def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[str, ...]:
+    """The C text of the file's own sine and cosine (derive.codegen.trig.c_helper) when a
+    kernel's body calls them, else nothing."""
+    lines = [line for k in kernels for line in k.c_body if "trig_" in line]
+    if not lines:
+        return ()
+    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sin", "cos") if any(f"trig_{f}(" in x for x in lines)))
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -98,7 +110,7 @@ def mask_type(n: int, source: str = "") -> str:
 def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
     """A kernel's C and Python text; ``f``: its CasADi Function when already built."""
     f = to_function(spec) if f is None else f
-    c = print_function(f, "c", real)
+    c = print_function(f, "c", real, own_trig=True)
     py = print_function(f, "python")
     c_args = tuple(f"const {prefix}_real {p.name}[{p.size}]" for p in spec.inputs)
     c_args += tuple(f"{prefix}_real {p.name}[{p.size}]" for p in spec.outputs)
@@ -136,6 +148,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
             arm.prismatic)})
     specs = kernel_specs(d, mode, observer)
+    kernels = tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs)
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(
@@ -146,9 +159,10 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         py_params=tuple((name, py_literal(v), param_doc(docs[name])) for name, v in values), baked=baked,
         u_max=tuple(c_literal(v, real) for v in limits), py_u_max=tuple(py_literal(v) for v in limits),
         mask=mask_type(d.n, arm.source),
-        kernels=tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs),
+        kernels=kernels,
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])), ldl_size=factor_size(d.n),
         trig_size=sum(p.size for k in specs if k.name == "dobc_factor" for p in k.inputs if p.name == "trig"),
+        trig_helper=trig_helper(kernels, real, arm.name),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),

@@ -11,14 +11,50 @@
 #define N GLASGOW_2LINK_N
 typedef glasgow_2link_real real;
 
+/* sin x and cos x (derive.codegen.trig): x = k pi/2 + r, |r| <= 0.8, polynomials in r;
+ * proved |error| <= 2.91e-16 |value| + 2.36e-16 |k| + 8.88e-17 (0 for k = 0),
+ * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step
+ * needs extra precision that -ffast-math could remove. libm's sin and cos for |x| > 1048576.
+ * One function for both (the polynomials are most of the code: one copy keeps a small
+ * target's flash); trig_sin and trig_cos call it. */
+static void trig_sincos(glasgow_2link_real x, glasgow_2link_real *s, glasgow_2link_real *c)
+{
+    glasgow_2link_real t, r = x, z, ps, pc;
+    long k = 0;
+    if (!(fabs(x) <= 0.7853981633974483)) {   /* else k = 0, r = x: no reduction */
+        if (!(fabs(x) <= 1048576.0)) {
+            *s = sin(x);
+            *c = cos(x);
+            return;
+        }
+        t = x * 0.6366197723675814;
+        k = (long)(t + copysign(0.5, t));
+        r = x - (glasgow_2link_real)k * 1.5707963267948966;
+    }
+    z = r * r;
+    ps = r + (r * z) * (-0.1666666666666662 + z * (0.008333333333319586 + z * (-0.00019841269827569535 + z * (2.755731292000414e-06 + z * (-2.5050637661375697e-08 + z * (1.588982892253278e-10))))));
+    pc = (1.0 - 0.5 * z) + (z * z) * (0.04166666666666657 + z * (-0.0013888888888869137 + z * (2.480158728645552e-05 + z * (-2.7557313497417e-07 + z * (2.08756092125942e-09 + z * (-1.1353835917110245e-11))))));
+    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */
+        t = ps;
+        ps = pc;
+        pc = -t;
+    }
+    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */
+        ps = -ps;
+        pc = -pc;
+    }
+    *s = ps;
+    *c = pc;
+}
+
 /* Inertia matrix J(theta) (eq. 12, a6); 5 operations. */
 static void glasgow_2link_plant_kernel_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real J[4])
 {
-    real a0, a1, a2;
+    real a0, a1, a2, a3, a4;
+    trig_sincos(theta[1], &a3, &a4);
     a0 = 0.17929666666666666;
     a1 = 0.0810084;
-    a2 = theta[1];
-    a2 = cos(a2);
+    a2 = a4;
     a1 = a1 * a2;
     a0 = a0 + a1;
     J[0] = a0;
@@ -34,7 +70,8 @@ static void glasgow_2link_plant_kernel_mass_matrix(const glasgow_2link_real thet
 /* G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 13 operations. */
 static void glasgow_2link_plant_kernel_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real G[2])
 {
-    real a0, a1, a2, a3, a4;
+    real a0, a1, a2, a3, a4, a5, a6;
+    trig_sincos(theta[1], &a5, &a6);
     a0 = 0.019617647058823528;
     a1 = dtheta[0];
     a0 = a0 * a1;
@@ -43,8 +80,7 @@ static void glasgow_2link_plant_kernel_bias(const glasgow_2link_real theta[2], c
     a4 = a1 + a3;
     a4 = a4 * a4;
     a2 = a2 * a4;
-    a4 = theta[1];
-    a4 = sin(a4);
+    a4 = a5;
     a2 = a2 * a4;
     a0 = a0 + a2;
     a2 = 0.0405042;
@@ -85,12 +121,12 @@ static void glasgow_2link_plant_kernel_input_matrix(glasgow_2link_real B[4])
 /* Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 38 operations. */
 static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real u[2], const glasgow_2link_real d[2], glasgow_2link_real ddtheta[2])
 {
-    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
+    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11;
+    trig_sincos(theta[1], &a10, &a11);
     a0 = 0.03181613333333334;
     a1 = 0.17929666666666666;
     a2 = 0.0810084;
-    a3 = theta[1];
-    a4 = cos(a3);
+    a4 = a11;
     a2 = a2 * a4;
     a1 = a1 + a2;
     a2 = a0 * a1;
@@ -113,7 +149,7 @@ static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real
     a8 = -0.0405042;
     a9 = a7 * a7;
     a8 = a8 * a9;
-    a3 = sin(a3);
+    a3 = a10;
     a8 = a8 * a3;
     a6 = a6 + a8;
     a9 = dtheta[1];

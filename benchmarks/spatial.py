@@ -54,6 +54,7 @@ URDF2CASADI_UR5 = {"J": 1026, "C q'": 648, "g": 199}
 PIN_GOAL = 6.0       # npid_step at least this many times faster than Pinocchio's rnea (issue 23)
 STEP_GOAL = 1.5      # dobc_step and mom_step at most this many times npid_step (issue 23)
 CLIP_SCALE = 20.0    # yd'' of the inputs that clip (the timed inputs: 0.2)
+WIDE_ANGLES = 0.36   # angle step of the wide inputs, +-2.88 rad (the timed inputs: 0.05, +-0.4 rad)
 
 
 ITERATIONS, REPEATS = 200_000, 5
@@ -86,6 +87,7 @@ int main(int argc, char **argv)
 {
     long iterations = atol(argv[1]), i;
     double scale = argc > 3 ? atof(argv[3]) : 0.2;   /* yd'' per unit; large: most steps clip */
+    double angle = argc > 4 ? atof(argv[4]) : 0.05;  /* angles within +-8 of these */
     int repeats = atoi(argv[2]), r, s, k, f, bad = 0;
     double best[3] = { 1e300, 1e300, 1e300 }, acc = 0, t0, t;
     long clipped[3] = { 0, 0, 0 };
@@ -98,7 +100,7 @@ int main(int argc, char **argv)
     real u[N], dt = (real)1e-3;
     for (s = 0; s < NS; ++s)
         for (k = 0; k < N; ++k) {
-            ins[s].theta[k] = (real)(0.05 * ((s * 3 + k * 5) % 17 - 8));
+            ins[s].theta[k] = (real)(angle * ((s * 3 + k * 5) % 17 - 8));
             ins[s].dtheta[k] = (real)(0.1 * ((s * 7 + k * 3) % 11 - 5));
             ins[s].yd[k] = ins[s].theta[k] + (real)0.01;
             ins[s].dyd[k] = (real)0.0;
@@ -136,24 +138,28 @@ def _ns(out: str, label: str) -> float:
 STEPS = ("npid_step", "dobc_step", "mom_step")
 
 
-def step_ns(arm_name: str, n: int, c: Path, work: Path, scale: float | None = None) -> dict[str, float]:
+def step_ns(arm_name: str, n: int, c: Path, work: Path, scale: float | None = None,
+            angles: float | None = None) -> dict[str, float]:
     """ns per call of the generated C npid_step, dobc_step and mom_step (gcc -O2), the three
     timed in turns in one process (:data:`C_DRIVER`): no step clipped (AssertionError otherwise),
     or with ``scale`` times the inputs' yd'' (most steps clipped), the clipped share of each
-    step's calls under ``"<step> clipped"``."""
+    step's calls under ``"<step> clipped"``; ``angles``: the angle step of the inputs (angles
+    within +-8 steps; default 0.05, where no sine needs an argument reduction)."""
     (c / "bench_driver.c").write_text(C_DRIVER.replace("@ARM@", arm_name).replace("@N@", str(n)))
     exe = work / "bench_steps"
     subprocess.run(["gcc", "-std=c99", "-O2", "-o", str(exe), str(c / "bench_driver.c"), str(c / f"{arm_name}.c"),
                     str(c / f"{arm_name}_kernels.c"), "-lm"], check=True, capture_output=True)
-    out = subprocess.run([str(exe), str(ITERATIONS), str(REPEATS), *([] if scale is None else [repr(scale)])],
+    extra = [] if scale is None and angles is None else [repr(0.2 if scale is None else scale)]
+    extra += [] if angles is None else [repr(angles)]
+    out = subprocess.run([str(exe), str(ITERATIONS), str(REPEATS), *extra],
                          check=True, capture_output=True, text=True).stdout
     if "bad 0 " not in out:
         raise AssertionError(f"{arm_name}: a step returned an error code in the timing driver:\n{out}")
-    if scale is None and "clipped 0 0 0" not in out:
+    if scale is None and angles is None and "clipped 0 0 0" not in out:
         raise AssertionError(f"{arm_name}: a timed step clipped a joint (the timings are of unclipped steps):\n{out}")
     counts = next(line.split()[3:] for line in out.splitlines() if line.startswith("bad "))
     share = {f"{name} clipped": int(k) / (ITERATIONS * REPEATS) for name, k in zip(STEPS, counts)}
-    return {name: _ns(out, name) for name in STEPS} | ({} if scale is None else share)
+    return {name: _ns(out, name) for name in STEPS} | ({} if scale is None and angles is None else share)
 
 
 def pinocchio_rnea_ns(name: str, arm, work: Path, label: str = "rnea") -> tuple[float | None, str]:
@@ -238,11 +244,12 @@ def measure(name: str) -> dict:
         rnea, why = pinocchio_rnea_ns(name, arm, Path(work))
         steps = step_ns(arm.name, dyn.n, c, Path(work))
         clipping = step_ns(arm.name, dyn.n, c, Path(work), CLIP_SCALE)
+        wide = step_ns(arm.name, dyn.n, c, Path(work), angles=WIDE_ANGLES)
         again, _ = pinocchio_rnea_ns(name, arm, Path(work))
         rnea = min(rnea, again) if rnea is not None and again is not None else rnea
     kernels = {k.name: print_function(to_function(k), "c").operations for k in kernel_specs(d, ParamsMode.BAKED)}
     return {"name": name, "n": dyn.n, "dyn": t_dyn, "C": t_c, "ops": ops, "generate": t_gen, "cc": t_cc,
-            "npid": steps["npid_step"], "steps": steps, "clipping": clipping, "kernels": kernels, "rnea": rnea,
+            "npid": steps["npid_step"], "steps": steps, "clipping": clipping, "wide": wide, "kernels": kernels, "rnea": rnea,
             "why": why}
 
 
@@ -276,7 +283,10 @@ def run() -> Section:
                     f"{r['rnea'] / r['npid']:.2f}x" if r["rnea"] is not None else "-",
                     *(f"{r['steps'][k] / r['npid']:.2f}x" for k in STEPS[1:])] for r in rows]
                   + [[f"{r['name']}, inputs that clip", *(f"{r['clipping'][k]:.0f} ns" for k in STEPS), "-", "-",
-                      *(f"{r['clipping'][k] / r['clipping']['npid_step']:.2f}x" for k in STEPS[1:])] for r in rows])
+                      *(f"{r['clipping'][k] / r['clipping']['npid_step']:.2f}x" for k in STEPS[1:])] for r in rows]
+                  + [[f"{r['name']}, angles within ±{8 * WIDE_ANGLES:.2f} rad", *(f"{r['wide'][k]:.0f} ns" for k in STEPS),
+                      "-", f"{r['rnea'] / r['wide']['npid_step']:.2f}x" if r["rnea"] is not None else "-",
+                      *(f"{r['wide'][k] / r['wide']['npid_step']:.2f}x" for k in STEPS[1:])] for r in rows])
     names = list(rows[0]["kernels"])
     kernel_ops = table(["kernel", *(r["name"] for r in rows)], [[k, *(r["kernels"][k] for r in rows)] for k in names])
     note = ("ops: count_ops after sympy.cse with the arm's values put in, each rational constant one literal as in "
@@ -289,5 +299,9 @@ def run() -> Section:
              f"{CLIP_SCALE / 0.2:g} times as large, clipped steps (npid, dobc, mom): "
              + "; ".join(f"{r['name']} " + ", ".join(f"{r['clipping'][k + ' clipped']:.0%}" for k in STEPS)
                          for r in rows) + " (not a goal: J's factor is computed on a clipped DOBC step only). "
+             f"Wide angles: the timed inputs' angles (within ±0.4 rad, where the kernels' sine and cosine "
+             f"need no argument reduction) times {WIDE_ANGLES / 0.05:g}, within ±{8 * WIDE_ANGLES:.2f} rad; "
+             "clipped steps " + "; ".join(f"{r['name']} " + ", ".join(f"{r['wide'][k + ' clipped']:.0%}" for k in STEPS)
+                                          for r in rows) + ". "
              "Kernel operations: the instructions of each generated kernel (double, after CasADi's CSE).")
     return Section(TITLE, (table(headers, cells), steps, kernel_ops, note), goals)

@@ -3,8 +3,8 @@
 The kernels' sin(q) and cos(q) are a large share of a control step's time when
 they are libm calls (a third of the Panda's ``npid_step``: the call, and a
 result the rest of the step waits for). The C printer
-(:mod:`derive.codegen.printing`) calls instead a static inline ``trig_sincos``
-of the real type, defined by :func:`c_helper` at the top of each C file that
+(:mod:`derive.codegen.printing`) calls instead a static ``trig_sincos`` (out
+of line: one copy per file) of the real type, defined by :func:`c_helper` at the top of each C file that
 needs it, and computes the sines and cosines of the kernel's input angles first
 so that the processor overlaps them with the rest.
 

@@ -87,13 +87,16 @@ class ArmView:
     trig_helper: tuple[str, ...] = ()           # the C file's own sin and cos (derive.codegen.trig), when used
 
 
+_TRIG_CALL = re.compile(r"\btrig_(sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
+
+
 def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[str, ...]:
     """The C text of the file's own sine and cosine (derive.codegen.trig.c_helper) when a
     kernel's body calls them, else nothing."""
-    lines = [line for k in kernels for line in k.c_body if "trig_" in line]
-    if not lines:
+    calls = {m for k in kernels for line in k.c_body for m in _TRIG_CALL.findall(line)}
+    if not calls:
         return ()
-    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sin", "cos") if any(f"trig_{f}(" in x for x in lines)))
+    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sin", "cos") if f in calls))
 
 
 def mask_type(n: int, source: str = "") -> str:

@@ -178,3 +178,17 @@ def test_printer_computes_the_trig_of_inputs_first_and_drops_dead_loads():
     assert any("trig_sin(" in line for line in body)
     plain = print_function(f, "c", "double").statements
     assert not any("trig_" in line for line in plain) and any("sin(" in line for line in plain)
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_trig_constants_are_exact_in_the_real_type(real):
+    """Every number the helper prints (coefficients, 2/pi, pi/2, pi/4) is a value of the real type,
+    so the C literal is the value the proof used."""
+    import numpy as np
+
+    kind = np.float32 if real == "float" else np.float64
+    texts = [*trig.COEFFICIENTS[real][0], *trig.COEFFICIENTS[real][1], trig.TWO_OVER_PI[real],
+             trig.PIO2_HEX[real], trig.PIO4_HEX[real]]
+    for text in texts:
+        value = float.fromhex(text)
+        assert float(kind(value)) == value, (real, text)

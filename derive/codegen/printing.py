@@ -169,12 +169,14 @@ def _python_statements(f: ca.Function, ins: tuple[str, ...], outs: tuple[str, ..
     return lines + [f"{outs[port]} = [{', '.join(e)}]" for port, e in enumerate(entries)]
 
 
-def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], set[int]], set[int]]:
-    """The input entries (port, index) whose sine or cosine ``f`` takes directly, in order, each
-    with the operations taken (OP_SIN, OP_COS); and the input loads (instruction numbers) whose
-    value is used otherwise (the others are not printed: their entry goes to trig_sincos)."""
+def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], None], dict[int, tuple[int, int]], set[int]]:
+    """The input entries (port, index) whose sine or cosine ``f`` takes directly, in order (a dict
+    as an ordered set); the sin and cos instructions that take them (instruction -> entry); and the
+    input loads (instruction numbers) whose value something else reads (the others are not
+    printed: their entry goes to trig_sincos)."""
     holds: dict[int, tuple[tuple[int, int], int]] = {}   # register -> (input entry, its load)
-    found: dict[tuple[int, int], set[int]] = {}
+    entries: dict[tuple[int, int], None] = {}
+    takes: dict[int, tuple[int, int]] = {}
     used: set[int] = set()
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
@@ -183,7 +185,8 @@ def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], set[int]], set[
             for a in (args[:1] if op == ca.OP_OUTPUT else args):
                 if a in holds:
                     if op in (ca.OP_SIN, ca.OP_COS):
-                        found.setdefault(holds[a][0], set()).add(op)
+                        entries.setdefault(holds[a][0])
+                        takes[k] = holds[a][0]
                     else:
                         used.add(holds[a][1])
         if op == ca.OP_OUTPUT:
@@ -193,7 +196,7 @@ def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], set[int]], set[
             holds[reg] = (tuple(args), k)
         else:
             holds.pop(reg, None)
-    return found, used
+    return entries, takes, used
 
 
 def print_function(f: ca.Function, language: str, real: str = "double",
@@ -214,7 +217,7 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     lines: list[str] = []
     ops = 0
     read: set[int] = set()
-    hoisted, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, set())
+    hoisted, takes, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, {}, set())
     trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # (entry, OP_SIN / OP_COS) -> its register
     for entry in hoisted:
         for op in (ca.OP_SIN, ca.OP_COS):
@@ -222,19 +225,14 @@ def print_function(f: ca.Function, language: str, real: str = "double",
         read.add(entry[0])
         lines.append(f"trig_sincos({ins[entry[0]]}[{entry[1]}], &a{trig_reg[entry, ca.OP_SIN]}, "
                      f"&a{trig_reg[entry, ca.OP_COS]});")
-    holds: dict[int, tuple[int, int]] = {}
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
         args = f.instruction_input(k)
         res = f.instruction_output(k)
-        entry = holds.get(args[0]) if op in (ca.OP_SIN, ca.OP_COS) else None
-        if op != ca.OP_OUTPUT:
-            holds.pop(res[0], None)        # the register is written: it no longer holds an input entry
-        if entry in hoisted:
-            lines.append(f"a{res[0]} = a{trig_reg[entry, op]};")
+        if k in takes:
+            lines.append(f"a{res[0]} = a{trig_reg[takes[k], op]};")
             ops += 1
         elif op == ca.OP_INPUT:
-            holds[res[0]] = tuple(args)
             if hoisted and k not in loads:
                 continue   # its entry only goes to the trig call
             read.add(args[0])

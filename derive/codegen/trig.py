@@ -63,9 +63,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
+import math
 from math import factorial
 
 import numpy as np
+
+from derive.codegen.printing import c_literal
 
 # Coefficients: weighted least squares on 200 Chebyshev nodes of z in [0, R^2]
 # (mpmath, 50 digits), rounded to the real type; the bound is proved for these values.
@@ -211,7 +214,7 @@ class TrigBound:
 
 def _round_up(q: Fraction) -> float:
     f = float(q)
-    return f if Fraction(f) >= q else float.__add__(f, abs(f) * 2 ** -52)
+    return f if Fraction(f) >= q else math.nextafter(f, math.inf)
 
 
 def reduced_range(real: str) -> Fraction:
@@ -252,8 +255,8 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
     real *s, real *c)``, and the ``needed`` ones among its wrappers ``trig_sin``, ``trig_cos``
     (only those the file calls: compilers warn of an unused static function)."""
     f = "f" if real == "float" else ""
-    lit = (lambda h: repr(float.fromhex(h)) + f) if real == "double" else (
-        lambda h: f"{float.fromhex(h)!r}f")
+    def lit(h: str) -> str:   # every value here is exact in the real type (a test checks the coefficients)
+        return c_literal(float.fromhex(h), real)
     S, Q = COEFFICIENTS[real]
     T = real_type
 

@@ -115,13 +115,17 @@ def _one_blas_thread():
     7 x 7 eigenvalue problems in the observer certificate, 21 x 21 sampled loops in the sample-time
     limits), which a thread pool only slows: `derive init` on the KUKA iiwa took 12.2 s CPU with
     OpenBLAS's two threads and 9.6 s with one. Set in the environment too, for the worker processes
-    of `derive sweep` (threadpoolctl, pyproject.toml)."""
+    of `derive sweep` (threadpoolctl, pyproject.toml). Before NumPy is imported (``derive show``: the
+    command's arguments import none) OpenBLAS is not loaded yet and reads the variables when it is:
+    threadpoolctl (3 ms to import) would find no library to limit."""
     import contextlib
 
     if any(name in os.environ for name in BLAS_THREAD_VARIABLES):
         return contextlib.nullcontext()
     for name in BLAS_THREAD_VARIABLES:
         os.environ[name] = "1"
+    if "numpy" not in sys.modules:
+        return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(1, "blas")

@@ -58,7 +58,7 @@ def _b_what(d: Derivation) -> str:
 
 def entries(d: Derivation, full: bool = False) -> list[Entry]:
     """Every quantity shown, in reading order (``full``: as for a small arm, whatever n)."""
-    k1, k2 = (sp.factor(k) for k in d.k_formulas)
+    k1, k2 = d.k_formulas   # factored already (derive.control.mpc.gains)
     E = Entry
     brief = not full and d.n > FULL_JOINTS and d.formal is not None
     out = [E("J", "J(θ)", "J(theta)", r"J(\theta)", ("J", "J", "J"), "inertia matrix", "eq. 12, a6", d.J)]

@@ -14,13 +14,25 @@ SQUARINGS = 16   # stable_bound: M, M^2, ..., M^65536 (a radius 1 - 1e-4 needs a
 _HOPELESS = 1e8  # a power this large (or an error bound above 1) is left to the eigenvalues
 
 
-def spectral_radius(M: np.ndarray, exact: bool = True, rank: bool = False) -> np.ndarray:
+def spectral_radius(M: np.ndarray, exact: bool = True, rank: bool = False,
+                    eigen_first: bool = False) -> np.ndarray:
     """The spectral radius of each matrix of a stack (... x k x k), by its eigenvalues (LAPACK's
     geev). Not ``exact``: where :func:`stable_bound` proves the radius below 1, that bound (< 1)
     stands in for it, and only the rest get their eigenvalues: a value >= 1 is always the radius
-    itself; ``rank``: every one exact when any is >= 1."""
+    itself; ``rank``: every one exact when any is >= 1.
+
+    ``eigen_first`` (not ``exact``, not ``rank``; for a stack stable_bound is not expected to prove,
+    radii within 1e-6 of 1): every matrix's eigenvalues first. When all radii are below 1 they are
+    returned: below 1 where the usual way is (it gives the same eigenvalues to the matrices it does
+    not prove, and a bound below 1 to those it does), so the same matrices are >= 1 (none) and each
+    value >= 1 is the same radius; the values below 1 are radii instead of bounds. Else the usual
+    way gives the result."""
     if exact:
         return np.abs(np.linalg.eigvals(M)).max(axis=-1)
+    if eigen_first and not rank:
+        rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
+        if rho.max(initial=0.0) < 1.0:
+            return rho
     out = stable_bound(M)
     todo = ~(out < 1.0)
     if todo.any():

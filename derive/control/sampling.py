@@ -129,22 +129,17 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
 
     rows: list = [None, L]   # the linearisation at the points of the last idx (the same subset or
                              # active set is asked for at every dt of a bracket or bisection)
-    # the plant's exponentials at the bracket's sample times, shared with the other forms and
-    # discretisations that linearise the same plant (MPC, DOBC, NPID: the same A and Bu)
-    shared = _exponentials(d, L) if points is None else None
 
-    def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False, share: bool = False) -> np.ndarray:
+    def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
         """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
         gives them without ``exact``: the search compares them with 1 and takes the worst of the
         failing ones; ``rank``: every one exact when one fails (the active set ranks them). At
         DT_MIN the loop's radii lie within about 1e-7 of 1, where stable_bound proves none: their
-        eigenvalues come first (``eigen_first``). ``share``: a sample time every search tries
-        (DT_MIN and the bracket's), whose exponentials are kept (:class:`_Exponentials`)."""
+        eigenvalues come first (``eigen_first``)."""
         if idx is not None and rows[0] is not idx:
             rows[:] = idx, {k: v[idx] for k, v in L.items()}
-        E = shared(dt, idx) if share and shared is not None else None
-        return spectral_radius(_transition(loop, form, observer, dt, L if idx is None else rows[1], E),
-                               exact=False, rank=rank, eigen_first=dt <= DT_MIN)
+        return _radii(loop, form, observer, dt, L if idx is None else rows[1], exact=False, rank=rank,
+                      eigen_first=dt <= DT_MIN)
 
     def done(lo: float, bad: int | None) -> SampleLimit:
         worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
@@ -159,7 +154,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     hints = _cached(_HINTS, d, "hints", set) if points is None else set()
     subset, hi = _union(P, np.arange(0, P, max(1, P // SUBSET)), np.array(sorted(hints), dtype=int)), None
     while True:
-        rho = radii(DT_MIN, subset, share=True)
+        rho = radii(DT_MIN, subset)
         if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
             bad = int(subset[rho.argmax()])
             if _continuous_rate(loop, form, L).max() < 0.0:
@@ -171,7 +166,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         if hi is None:
             safe, dt = DT_MIN, DT_START
             while hi is None and safe < DT_MAX:
-                rho = radii(dt, subset, rank=True, share=True)
+                rho = radii(dt, subset, rank=True)
                 if rho.max() >= 1.0:
                     hi = dt
                 else:
@@ -230,21 +225,14 @@ def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | Non
 _TAYLOR_DEGREE, _PS_STEP = 18, 4   # _expm's Taylor polynomial and its Paterson-Stockmeyer step
 
 
-def _squarings(M: np.ndarray) -> int:
-    """The squarings _expm takes for a stack (... x k x k): the fewest that bring the largest
-    1-norm of the stack within 1/2."""
-    norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
-    return max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
-
-
-def _expm(M: np.ndarray, s: int | None = None) -> np.ndarray:
+def _expm(M: np.ndarray) -> np.ndarray:
     """exp of a stack of square matrices (... x k x k): scaling and squaring of a degree-18 Taylor
     polynomial (relative error below 1e-15 at norms <= 1/2 after scaling), the polynomial evaluated
     by Paterson and Stockmeyer's scheme (Higham, Functions of Matrices, 2008, sec. 4.4.3: A^2, A^3,
     A^4, then Horner's rule in A^4 over coefficients that are combinations of I, A, A^2, A^3): 7
-    matrix products instead of 18. ``s``: the number of squarings (default :func:`_squarings` of the
-    stack); each matrix's exponential depends on it and on the matrix alone."""
-    s = _squarings(M) if s is None else s
+    matrix products instead of 18."""
+    norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
+    s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
     A = M / (2.0 ** s)
     powers = [None, A]
     for _ in range(2, _PS_STEP):
@@ -271,49 +259,6 @@ def _expm(M: np.ndarray, s: int | None = None) -> np.ndarray:
     return E
 
 
-def _augmented(L: dict) -> np.ndarray:
-    """[[A, Bu], [0, 0]] at every point (P x (m + n) x (m + n)): its exponential times dt holds the
-    zero-order hold's Phi and Gamma."""
-    P, m, n = L["A"].shape[0], L["A"].shape[1], L["Bu"].shape[2]
-    aug = np.zeros((P, m + n, m + n))
-    aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
-    return aug
-
-
-class _Exponentials:
-    """exp(aug dt) (:func:`_augmented`) of one plant linearisation at the default grid's points, kept per
-    (dt, squarings) for the points asked so far: the searches of the forms with the same A and Bu try the
-    same sample times (DT_MIN, the bracket's) on subsets that mostly overlap. A stack's exponentials are
-    taken with the squarings of that stack (:func:`_squarings`, as :func:`_expm` itself), and each
-    matrix's exponential depends only on the matrix and that number (every operation of _expm is per
-    matrix), so a kept one is the one _expm would give in that stack."""
-
-    def __init__(self, aug: np.ndarray) -> None:
-        self.aug = aug
-        # (dt, squarings) -> (where each point's exponential is in the kept stack, -1: not kept; the stack)
-        self.kept: dict[tuple[float, int], tuple[np.ndarray, np.ndarray]] = {}
-
-    def __call__(self, dt: float, idx: np.ndarray | None) -> np.ndarray:
-        P = self.aug.shape[0]
-        rows = np.arange(P) if idx is None else idx
-        M = self.aug[rows] * dt
-        s = _squarings(M)
-        where, stack = self.kept.get((dt, s), (np.full(P, -1), self.aug[:0]))
-        new = where[rows] < 0
-        if new.any():
-            where = where.copy()
-            where[rows[new]] = stack.shape[0] + np.arange(int(new.sum()))
-            stack = np.concatenate([stack, _expm(M[new], s)])
-            self.kept[(dt, s)] = where, stack
-        return stack[where[rows]]
-
-
-def _exponentials(d, L: dict) -> _Exponentials:
-    """The derivation's kept exponentials for the plant linearisation of L (one per distinct A, Bu)."""
-    key = (L["A"].tobytes(), L["Bu"].tobytes())
-    return _cached(_EXPS, d, key, lambda: _Exponentials(_augmented(L)))
-
-
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
            rank: bool = False, eigen_first: bool = False) -> np.ndarray:
     """Spectral radius of the sampled closed loop at every operating point (module docstring; not
@@ -321,14 +266,14 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
     return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
 
 
-def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
-                E: np.ndarray | None = None) -> np.ndarray:
+def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:
     """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring; ``E``: the plant's exponentials exp([[A, Bu], [0, 0]] dt) at the points, when known)."""
+    docstring)."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
-    if E is None:
-        E = _expm(_augmented(L) * dt)
+    aug = np.zeros((P, m + n, m + n))
+    aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
+    E = _expm(aug * dt)
     Phi, Gam = E[:, :m, :m], E[:, :m, m:]
     Ux, Uc = L["Ux"], L["Uc"]
     eye = np.broadcast_to(np.eye(n), (P, n, n))
@@ -422,7 +367,6 @@ _GRIDS: dict = {}
 _LINEAR: dict = {}
 _HINTS: dict = {}
 _LOOPS: dict = {}
-_EXPS: dict = {}
 
 
 def _cached(store: dict, d, key, make):

@@ -40,29 +40,6 @@ def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
     return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a.view(np.uint64), b.view(np.uint64))
 
 
-def test_kept_exponentials_are_the_ones_expm_gives_in_each_stack():
-    """The plant's exp(aug dt) kept between the searches (MPC, DOBC, NPID share A and Bu) is, bit
-    for bit, what _expm gives the stack asked for, whichever stacks were asked before at that dt."""
-    L = _linear("mpc")
-    aug = sampling._augmented(L)
-    P = aug.shape[0]
-    kept = sampling._Exponentials(aug)
-    rng = np.random.default_rng(23)
-    for dt in (sampling.DT_MIN, 1e-5, 6.4e-4, 2.56e-3, 0.04096, 0.16384):
-        for _ in range(6):
-            idx = np.sort(rng.choice(P, int(rng.integers(1, P)), replace=False))
-            assert _same_bits(kept(dt, idx), sampling._expm(aug[idx] * dt)), dt
-        assert _same_bits(kept(dt, None), sampling._expm(aug * dt)), dt
-    assert len({s for _, s in kept.kept}) > 1     # kept apart per number of squarings
-
-
-def test_mpc_dobc_and_npid_linearise_the_same_plant_at_the_grid():
-    """What the kept exponentials share: A and Bu of the default grid's points, bit for bit."""
-    a = _linear("mpc")
-    for form in ("dobc", "npid"):
-        assert _same_bits(_linear(form)["A"], a["A"]) and _same_bits(_linear(form)["Bu"], a["Bu"]), form
-
-
 @pytest.mark.parametrize("form, observer", [("mpc", "explicit"), ("dobc", "explicit"), ("npid", "implicit"),
                                             ("dobc", "implicit"), ("mom", "explicit")])
 @pytest.mark.parametrize("dt", [sampling.DT_MIN, 1e-3, 0.2])

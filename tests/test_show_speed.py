@@ -105,3 +105,25 @@ def test_blas_runs_on_one_thread_when_numpy_comes_after_the_commands_setting():
             "with cli._one_blas_thread():\n    import numpy\n    from threadpoolctl import threadpool_info\n"
             "    print(sorted({p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'}))")
     assert _run(code) == "[1]"
+
+
+def _listed_by_rglob(root: Path) -> list[Path]:
+    return [p for p in sorted(root.rglob("*"))
+            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so")]
+
+
+def test_the_fingerprinted_files_are_those_rglob_lists_in_its_order(tmp_path):
+    """derive.cache.code_files (os.walk, __pycache__ not entered) lists what the fingerprint hashed
+    before: the package, the templates and a tree with bytecode, a .so, nested folders, a symlink."""
+    from derive.cache import code_files
+    from derive.paths import PACKAGE, TEMPLATES
+
+    for root in (PACKAGE, TEMPLATES):
+        assert code_files(root) == _listed_by_rglob(root)
+    for rel in ("a.py", "b/__pycache__/a.cpython-311.pyc", "b/c.py", "b/c.so", "b-c/x.txt", "b/d/e.j2", "Z.py"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text(rel)
+    (tmp_path / "link.py").symlink_to(tmp_path / "a.py")
+    (tmp_path / "dirlink").symlink_to(tmp_path / "b", target_is_directory=True)
+    assert code_files(tmp_path) == _listed_by_rglob(tmp_path)
+    assert len(code_files(tmp_path)) == 6

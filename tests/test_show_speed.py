@@ -127,3 +127,21 @@ def test_the_fingerprinted_files_are_those_rglob_lists_in_its_order(tmp_path):
     (tmp_path / "dirlink").symlink_to(tmp_path / "b", target_is_directory=True)
     assert code_files(tmp_path) == _listed_by_rglob(tmp_path)
     assert len(code_files(tmp_path)) == 6
+
+
+def test_the_console_process_of_show_runs_without_the_cycle_collector_and_a_caller_keeps_its_own(capsys):
+    """derive.cli.NO_CYCLE_COLLECTOR: only the process's own command line (argv None) turns the
+    collector off and freezes at the end; main(argv) from a caller (the tests) leaves gc alone."""
+    import gc
+
+    from derive.cli import main
+
+    frozen = gc.get_freeze_count()
+    assert main(["show", str(DATA / "my3.toml"), "--no-cache"]) == 0
+    assert gc.isenabled() and gc.get_freeze_count() == frozen
+    capsys.readouterr()
+    code = ("import contextlib, gc, io, sys\nfrom derive.cli import main\n"
+            f"sys.argv = ['derive', 'show', {str(DATA / 'my3.toml')!r}, '--no-cache']\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n    assert main() == 0\n"
+            "print(gc.isenabled(), gc.get_freeze_count() > 0)")
+    assert _run(code) == "False True"

@@ -89,12 +89,12 @@ def _run(code: str) -> str:
     return out.stdout.strip()
 
 
-def test_show_of_a_planar_arm_loads_no_urdf_reader_synthesis_numpy_ma_or_threadpoolctl():
+def test_show_of_a_planar_arm_loads_no_urdf_reader_synthesis_numpy_ma_threadpoolctl_or_difflib():
     code = ("import contextlib, io, sys\nfrom derive.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             f"    assert main(['show', {str(DATA / 'my3.toml')!r}, '--no-cache']) == 0\n"
             "print(sorted(m for m in ('derive.model.urdf', 'derive.model.dh', 'derive.control.synthesis', "
-            "'numpy.ma', 'threadpoolctl') if m in sys.modules))")
+            "'numpy.ma', 'threadpoolctl', 'difflib') if m in sys.modules))")
     assert _run(code) == "[]"
 
 

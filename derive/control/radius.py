@@ -93,7 +93,8 @@ def balancing(P: np.ndarray, sweeps: int = 2) -> np.ndarray | None:
     over the stack, off the diagonal, so that each state's row and column of D^-1 |P| D weigh
     alike. None when a scaled entry could leave the normal range (the scaling would round there
     and no longer be a similarity)."""
-    A = np.abs(P).max(axis=0)
+    magnitude = np.abs(P)                  # once: the stack can hold thousands of matrices
+    A = magnitude.max(axis=0)
     A[np.diag_indices_from(A)] = 0.0
     f = np.ones(A.shape[-1])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -102,9 +103,9 @@ def balancing(P: np.ndarray, sweeps: int = 2) -> np.ndarray | None:
             step = np.round(0.25 * np.log2(B.sum(axis=1) / B.sum(axis=0)))
             f *= np.exp2(np.where(np.isfinite(step), step, 0.0))
     ratio = f[None, :] / f[:, None]
-    nonzero = np.abs(P)[np.abs(P) > 0]
+    nonzero = magnitude > 0                # the smallest and largest non-zero magnitudes, without a copy
     tiny = np.finfo(float).tiny
-    if nonzero.size and (nonzero.min() * ratio.min() < tiny * 2 ** 60
-                         or nonzero.max() * ratio.max() > np.finfo(float).max / 2 ** 60):
+    if nonzero.any() and (magnitude.min(where=nonzero, initial=np.inf) * ratio.min() < tiny * 2 ** 60
+                          or magnitude.max(where=nonzero, initial=0.0) * ratio.max() > np.finfo(float).max / 2 ** 60):
         return None
     return f

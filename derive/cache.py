@@ -39,11 +39,22 @@ def code_fingerprint() -> str:
 
     h = hashlib.sha256(f"derive {__version__}\0".encode())
     for root in (PACKAGE, TEMPLATES):
-        for p in sorted(root.rglob("*")):
-            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so"):
-                h.update(f"{root.name}/{p.relative_to(root).as_posix()}\0".encode())
-                h.update(hashlib.sha256(p.read_bytes()).digest())
+        for p in code_files(root):
+            h.update(f"{root.name}/{p.relative_to(root).as_posix()}\0".encode())
+            h.update(hashlib.sha256(p.read_bytes()).digest())
     return h.hexdigest()
+
+
+def code_files(root: Path) -> list[Path]:
+    """The files under ``root`` that :func:`code_fingerprint` hashes, in its order: those of
+    ``sorted(root.rglob("*"))`` that are files, outside ``__pycache__`` and not .pyc or .so. Listed by
+    os.walk without entering ``__pycache__`` (rglob stats every bytecode file there: 4 of the 8 ms)."""
+    found = []
+    for folder, subfolders, names in os.walk(root):
+        subfolders[:] = [x for x in subfolders if x != "__pycache__"]
+        found += [Path(folder, name) for name in names]
+    return [p for p in sorted(found)
+            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so")]
 
 
 def read_files(source: Path) -> list[tuple[str, bytes]] | None:

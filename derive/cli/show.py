@@ -58,7 +58,7 @@ def _b_what(d: Derivation) -> str:
 
 def entries(d: Derivation, full: bool = False) -> list[Entry]:
     """Every quantity shown, in reading order (``full``: as for a small arm, whatever n)."""
-    k1, k2 = (sp.factor(k) for k in d.k_formulas)
+    k1, k2 = d.k_formulas   # factored already (derive.control.mpc.gains)
     E = Entry
     brief = not full and d.n > FULL_JOINTS and d.formal is not None
     out = [E("J", "J(θ)", "J(theta)", r"J(\theta)", ("J", "J", "J"), "inertia matrix", "eq. 12, a6", d.J)]
@@ -170,8 +170,10 @@ def _text_block(e: Entry, sh: Shown, pr: TextPrinter, unicode: bool, limit: int)
         if len(body) == 1 and width(line) <= limit:
             return [line]
         return [*_fill(head, limit), *wrap(name, pr.terms(sp.sympify(value)), limit)]
-    cells = [[pr.doprint(x) for x in value.row(i)] for i in range(value.rows)]
-    grid = _grid(cells, unicode)
+    # each entry printed once: its terms (TextPrinter.terms) make both its grid cell (doprint joins
+    # them with spaces) and its lines when the grid does not fit
+    printed = [[pr.terms(x) for x in value.row(i)] for i in range(value.rows)]
+    grid = _grid([[" ".join(t) for t in row] for row in printed], unicode)
     if not sh.notes and max(width(g) for g in grid) + 2 <= limit:
         return [*_fill(head, limit), *("  " + g for g in grid)]
     symmetric = value.is_square and value == value.T
@@ -188,7 +190,7 @@ def _text_block(e: Entry, sh: Shown, pr: TextPrinter, unicode: bool, limit: int)
                 notes.append("entries not listed are 0")
                 continue
             index = (i + 1,) if value.cols == 1 else (i + 1, j + 1)
-            terms = pr.terms(value[i, j]) if value[i, j] != 0 else ["0"]
+            terms = printed[i][j] if value[i, j] != 0 else ["0"]
             if k in sh.notes:
                 terms = terms + [f"({sh.notes[k]})"]
             lines += wrap(subscript(base, index, unicode), terms, limit)

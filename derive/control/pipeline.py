@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import sympy as sp
 
@@ -21,10 +22,12 @@ from derive.control.observer import Observer, derive_observer, speed_bound
 from derive.control.grid import check_definite
 from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
-from derive.control.synthesis import Synthesis, synthesise_for
 from derive.control.wrap import wrap, wrapped_outputs
 from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
+
+if TYPE_CHECKING:   # imported where w = "auto" needs it: the SDP synthesis and its certificate (~10 ms)
+    from derive.control.synthesis import Synthesis
 
 
 @compact_repr
@@ -142,6 +145,8 @@ def derive(arm: Arm) -> Derivation:
     wrapped = wrapped_outputs(mpc_f.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
+        from derive.control.synthesis import synthesise_for
+
         synthesis = synthesise_for(arm, matrix_xreplace(dyn.J, dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
         obs_f = derive_observer(odyn, w_values=[synthesis.W[j][j] for j in range(arm.n)] if chen else None,

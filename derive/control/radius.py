@@ -14,13 +14,25 @@ SQUARINGS = 16   # stable_bound: M, M^2, ..., M^65536 (a radius 1 - 1e-4 needs a
 _HOPELESS = 1e8  # a power this large (or an error bound above 1) is left to the eigenvalues
 
 
-def spectral_radius(M: np.ndarray, exact: bool = True, rank: bool = False) -> np.ndarray:
+def spectral_radius(M: np.ndarray, exact: bool = True, rank: bool = False,
+                    eigen_first: bool = False) -> np.ndarray:
     """The spectral radius of each matrix of a stack (... x k x k), by its eigenvalues (LAPACK's
     geev). Not ``exact``: where :func:`stable_bound` proves the radius below 1, that bound (< 1)
     stands in for it, and only the rest get their eigenvalues: a value >= 1 is always the radius
-    itself; ``rank``: every one exact when any is >= 1."""
+    itself; ``rank``: every one exact when any is >= 1.
+
+    ``eigen_first`` (not ``exact``, not ``rank``; for a stack stable_bound is not expected to prove,
+    radii within 1e-6 of 1): every matrix's eigenvalues first. When all radii are below 1 they are
+    returned: below 1 where the usual way is (it gives the same eigenvalues to the matrices it does
+    not prove, and a bound below 1 to those it does), so the same matrices are >= 1 (none) and each
+    value >= 1 is the same radius; the values below 1 are radii instead of bounds. Else the usual
+    way gives the result."""
     if exact:
         return np.abs(np.linalg.eigvals(M)).max(axis=-1)
+    if eigen_first and not rank:
+        rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
+        if rho.max(initial=0.0) < 1.0:
+            return rho
     out = stable_bound(M)
     todo = ~(out < 1.0)
     if todo.any():
@@ -81,7 +93,8 @@ def balancing(P: np.ndarray, sweeps: int = 2) -> np.ndarray | None:
     over the stack, off the diagonal, so that each state's row and column of D^-1 |P| D weigh
     alike. None when a scaled entry could leave the normal range (the scaling would round there
     and no longer be a similarity)."""
-    A = np.abs(P).max(axis=0)
+    magnitude = np.abs(P)                  # once: the stack can hold thousands of matrices
+    A = magnitude.max(axis=0)
     A[np.diag_indices_from(A)] = 0.0
     f = np.ones(A.shape[-1])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -90,9 +103,9 @@ def balancing(P: np.ndarray, sweeps: int = 2) -> np.ndarray | None:
             step = np.round(0.25 * np.log2(B.sum(axis=1) / B.sum(axis=0)))
             f *= np.exp2(np.where(np.isfinite(step), step, 0.0))
     ratio = f[None, :] / f[:, None]
-    nonzero = np.abs(P)[np.abs(P) > 0]
+    nonzero = magnitude > 0                # the smallest and largest non-zero magnitudes, without a copy
     tiny = np.finfo(float).tiny
-    if nonzero.size and (nonzero.min() * ratio.min() < tiny * 2 ** 60
-                         or nonzero.max() * ratio.max() > np.finfo(float).max / 2 ** 60):
+    if nonzero.any() and (magnitude.min(where=nonzero, initial=np.inf) * ratio.min() < tiny * 2 ** 60
+                          or magnitude.max(where=nonzero, initial=0.0) * ratio.max() > np.finfo(float).max / 2 ** 60):
         return None
     return f

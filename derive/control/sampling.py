@@ -127,12 +127,19 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     # both discretisations linearise the same laws at the default points: once per derivation and form
     loop, L = _cached(_LINEAR, d, form, linearise) if points is None else linearise()
 
+    rows: list = [None, L]   # the linearisation at the points of the last idx (the same subset or
+                             # active set is asked for at every dt of a bracket or bisection)
+
     def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
         """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
         gives them without ``exact``: the search compares them with 1 and takes the worst of the
-        failing ones; ``rank``: every one exact when one fails (the active set ranks them)."""
-        return _radii(loop, form, observer, dt, L if idx is None else {k: v[idx] for k, v in L.items()},
-                      exact=False, rank=rank)
+        failing ones; ``rank``: every one exact when one fails (the active set ranks them). At
+        DT_MIN the loop's radii lie within about 1e-7 of 1, where stable_bound proves none: their
+        eigenvalues come first (``eigen_first``)."""
+        if idx is not None and rows[0] is not idx:
+            rows[:] = idx, {k: v[idx] for k, v in L.items()}
+        return _radii(loop, form, observer, dt, L if idx is None else rows[1], exact=False, rank=rank,
+                      eigen_first=dt <= DT_MIN)
 
     def done(lo: float, bad: int | None) -> SampleLimit:
         worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
@@ -145,7 +152,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     # points where another form's search failed on this grid join from the start (the fast modes are
     # often the same: the box's corners, a light joint's damping)
     hints = _cached(_HINTS, d, "hints", set) if points is None else set()
-    subset, hi = np.union1d(np.arange(0, P, max(1, P // SUBSET)), np.array(sorted(hints), dtype=int)), None
+    subset, hi = _union(P, np.arange(0, P, max(1, P // SUBSET)), np.array(sorted(hints), dtype=int)), None
     while True:
         rho = radii(DT_MIN, subset)
         if rho.max() >= 1.0:   # the continuous loop unstable (not a sampling limit), or a limit below DT_MIN
@@ -168,7 +175,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
                 failed = _first_failure(radii, P, DT_START, DT_MAX)
                 if failed is None:
                     return SampleLimit(form, observer, math.inf, math.inf, P, None)
-                subset = np.union1d(subset, failed)
+                subset = _union(P, subset, failed)
                 hints.update(failed.tolist())
                 continue
         else:
@@ -189,8 +196,17 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         if rho.max() < 1.0:
             return done(lo, bad)
         hi = lo
-        subset = np.union1d(subset, np.flatnonzero(rho >= 1.0))
+        subset = _union(P, subset, np.flatnonzero(rho >= 1.0))
         hints.update(np.flatnonzero(rho >= 1.0).tolist())
+
+
+def _union(P: int, *parts: np.ndarray) -> np.ndarray:
+    """The sorted distinct indices of ``parts`` (each within 0..P-1): np.union1d's result, by a mask
+    (np.union1d's np.unique imports numpy.ma, about 10 ms of ``derive show``)."""
+    mask = np.zeros(P, dtype=bool)
+    for part in parts:
+        mask[part] = True
+    return np.flatnonzero(mask)
 
 
 def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | None:
@@ -244,9 +260,15 @@ def _expm(M: np.ndarray) -> np.ndarray:
 
 
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
-           rank: bool = False) -> np.ndarray:
+           rank: bool = False, eigen_first: bool = False) -> np.ndarray:
     """Spectral radius of the sampled closed loop at every operating point (module docstring; not
-    ``exact``: as spectral_radius gives it)."""
+    ``exact``: as spectral_radius gives it, ``eigen_first`` passed on)."""
+    return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
+
+
+def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:
+    """The sampled closed loop's transition matrix at every operating point (P x k x k; module
+    docstring)."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
     aug = np.zeros((P, m + n, m + n))
@@ -256,13 +278,13 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
     Ux, Uc = L["Ux"], L["Uc"]
     eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
-        return spectral_radius(Phi + Gam @ Ux, exact, rank)
+        return Phi + Gam @ Ux
     if form == "mom":                       # m + dt m'(x, m, u), the same in both discretisations
         R = dt * L["R"]
         Sx, Sc, Su = R[:, :, :m], eye + R[:, :, m:m + n], R[:, :, m + n:]
         M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
                             np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-        return spectral_radius(_residual(M, L, loop.K, dt), exact, rank)
+        return _residual(M, L, loop.K, dt)
     elif form == "npid":                      # int_e + dt (yd - C theta)
         if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
             BW = np.linalg.solve(loop.B, loop.W)
@@ -278,14 +300,14 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
         M = np.concatenate([np.concatenate([Phi + Gam @ Vx, Gam @ Vz, Gam @ Vu], axis=-1),
                             np.concatenate([Zx, Zz, Zu], axis=-1),
                             np.concatenate([Vx, Vz, Vu], axis=-1)], axis=-2)
-        return spectral_radius(M, exact, rank)
+        return M
     else:                                   # explicit, or the z-only backward step (_Z_ONLY)
         A = L["J"] + (dt * loop.W if observer == _Z_ONLY else 0.0)
         K = dt * loop.W @ np.linalg.inv(A)
         Sx, Sc, Su = K @ L["dr"], eye - K, -K @ loop.B
     M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
                         np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-    return spectral_radius(M, exact, rank)
+    return M
 
 
 def _continuous_rate(loop: SampledLoop, form: str, L: dict) -> np.ndarray:

@@ -14,7 +14,6 @@ import math
 import numbers
 import re
 from dataclasses import dataclass
-from difflib import get_close_matches
 from fractions import Fraction
 from typing import Any
 
@@ -183,6 +182,8 @@ class Reader:
             self.bad(field, what, value)
             return None
         for key in sorted(set(value) - set(keys), key=str):
+            from difflib import get_close_matches   # only for an unknown key (difflib: ~3 ms to import)
+
             close = get_close_matches(key.lower(), list(keys), n=1) if isinstance(key, str) else []
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             self.add(path(field, key), f"one of the keys {', '.join(keys)}{hint}",

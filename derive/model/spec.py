@@ -55,10 +55,8 @@ from derive.model.names import name_check
 from derive.model.override import apply_overrides
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
-from derive.model.dh import dh_chain
 from derive.model.singular import unmoved_joint
 from derive.model.rigid import rational_unit
-from derive.model.urdf import urdf_chain
 
 from derive.model.sweepspec import SweepSpec, parse_sweep
 from derive.paths import ARMS_DIR, DEFAULT_ARM, packaged_arms, resolve_arm_path  # noqa: F401 (re-exported)
@@ -400,9 +398,13 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
         point_masses = read_point_masses(r, top.get("point_mass", []), None if links is None else len(links))
         n = None if links is None else len(links)
     elif kind == "dh":
+        from derive.model.dh import dh_chain   # here: a planar arm file needs neither reader (nor XML)
+
         spatial = dh_chain(r, top.get("dh"), top.get("body", []), g, unit_direction(head.direction or SPATIAL_DOWN))
         n = None if spatial is None else spatial.n
     elif kind == "urdf":
+        from derive.model.urdf import urdf_chain
+
         found = urdf_chain(r, arm_table, base_dir, g, unit_direction(head.direction or SPATIAL_DOWN))
         spatial = None if found is None else found.chain
         n = None if spatial is None else spatial.n

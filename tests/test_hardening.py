@@ -89,9 +89,9 @@ def test_fuzz_driver_detects_a_broken_contract(trees, tmp_path):
         (broken / f.name).write_text(f.read_text())
     glue = broken / "glasgow_2link.c"
     text = glue.read_text()
-    marker = "\n    glasgow_2link_kernel_mpc("
-    assert text.count(marker) == 1
-    glue.write_text(text.replace(marker, "\n    u[0] = 0;" + marker))
+    marker = "    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;\n    glasgow_2link_kernel_mpc("
+    assert marker in text
+    glue.write_text(text.replace(marker, "    u[0] = 0;\n" + marker))
     exe = _fuzz(broken, "glasgow_2link", False, tmp_path / "fz", ["-O1"])
     proc = subprocess.run([str(exe), "2000"], capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0 and "FAIL" in proc.stdout

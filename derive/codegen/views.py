@@ -22,7 +22,6 @@ from derive.errors import Problem, SpecError
 from derive.model.actuators import input_word, units_text
 from derive.model.spec import gain_units_text, observer_parameters
 from derive.codegen.printing import c_literal, print_function, py_literal
-from derive.codegen.reach import covered
 from derive.codegen.trig import c_helper
 
 def comment_text(text: str) -> str:
@@ -86,9 +85,6 @@ class ArmView:
     ldl_size: int = 0                           # reals of the LDL^T factor of J the DOBC step passes on
     trig_size: int = 0                          # sines and cosines the dobc kernel passes to dobc_factor
     trig_helper: tuple[str, ...] = ()           # the C file's own sin and cos (derive.codegen.trig), when used
-    # "kernel:output" -> the kernel's input ports a non-finite entry of which makes that output non-finite
-    # (derive.codegen.reach): the glue leaves out their own checks where it checks that output
-    covered: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
 
 _TRIG_CALL = re.compile(r"\btrig_(sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
@@ -155,10 +151,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
             arm.prismatic)})
     specs = kernel_specs(d, mode, observer)
-    fs = {k.name: (functions or {}).get(k.name) or to_function(k) for k in specs}
-    kernels = tuple(kernel_view(k, real, arm.name, fs[k.name]) for k in specs)
-    fixed = {"p": [v for _, v in values]}   # a runtime build's parameter port, at the arm's values
-    reach = tuple((f"{name}:{out}", ports) for name, f in fs.items() for out, ports in covered(f, fixed).items())
+    kernels = tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs)
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(
@@ -172,7 +165,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
         kernels=kernels,
         k1=py_literal(float(d.K1[0, 0])), k2=py_literal(float(d.K2[0, 0])), ldl_size=factor_size(d.n),
         trig_size=sum(p.size for k in specs if k.name == "dobc_factor" for p in k.inputs if p.name == "trig"),
-        trig_helper=trig_helper(kernels, real, arm.name), covered=reach,
+        trig_helper=trig_helper(kernels, real, arm.name),
         observer_notes=tuple(comment_text(x) for x in observer_notes(d)),
         sample_notes=() if sample_time is None else tuple(textwrap.wrap(comment_text("Sample time: " + sample_time + "."),
                                                                          88)),

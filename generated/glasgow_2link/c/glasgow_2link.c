@@ -55,7 +55,7 @@ int glasgow_2link_mpc_step(const glasgow_2link_input *in, real u[N], mask *clipp
     real v[N];
     mask hit = 0;
     int i;
-    /* theta, dtheta, yd, dyd, ddyd: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
+    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_mpc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, v);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;  /* before clip: fmin/fmax may drop a NaN */
     for (i = 0; i < N; ++i) {
@@ -81,7 +81,7 @@ int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_inp
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
-    /* theta, dtheta, yd, dyd, ddyd, int_e: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
+    if (!input_finite(in) || !finite_all(s->int_e, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_npid(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->int_e, &dt, v, step);
     if (!finite_all(v, N) || !finite_all(step, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
@@ -111,7 +111,7 @@ int glasgow_2link_dobc_step(glasgow_2link_dobc_state *s, const glasgow_2link_inp
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
-    /* theta, dtheta, yd, dyd, ddyd, z: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
+    if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_dobc(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->z, v, a, trig);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
@@ -133,8 +133,7 @@ int glasgow_2link_dobc_estimate(const glasgow_2link_dobc_state *s, const glasgow
 {
     real v[N];
     int i;
-    /* dtheta, z: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
-    if (!(finite_all(in->theta, N) && finite_all(in->yd, N) && finite_all(in->dyd, N) && finite_all(in->ddyd, N))) return GLASGOW_2LINK_ENONFINITE;
+    if (!input_finite(in) || !finite_all(s->z, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_dhat(in->dtheta, s->z, v);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) dhat[i] = v[i];
@@ -159,7 +158,7 @@ int glasgow_2link_mom_step(glasgow_2link_mom_state *s, const glasgow_2link_input
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
-    /* theta, dtheta, yd, dyd, ddyd, m: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
+    if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, v, dhat, rate);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) {
@@ -177,8 +176,7 @@ int glasgow_2link_mom_estimate(const glasgow_2link_mom_state *s, const glasgow_2
 {
     real law[N], v[N], rate[N];
     int i;
-    /* dtheta, m: a non-finite entry makes a result non-finite (derive.codegen.reach), checked below */
-    if (!(finite_all(in->theta, N) && finite_all(in->yd, N) && finite_all(in->dyd, N) && finite_all(in->ddyd, N))) return GLASGOW_2LINK_ENONFINITE;
+    if (!input_finite(in) || !finite_all(s->m, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_mom(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->m, law, v, rate);
     if (!finite_all(v, N)) return GLASGOW_2LINK_ENONFINITE;
     for (i = 0; i < N; ++i) dhat[i] = v[i];

@@ -277,3 +277,51 @@ def test_implicit_npid_and_dobc_differ_by_o_dt_after_the_first_sample_on_a_light
     assert diffs[-1] < 0.015
     for coarse, fine in zip(diffs, diffs[1:]):
         assert fine / coarse == pytest.approx(0.5, abs=0.07)
+
+
+ESTIMATE_DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include "@A@.h"
+int main(void)
+{
+    @A@_input in;
+    @A@_dobc_state s;
+    @A@_real dhat[@N@], zero = 0;
+    volatile @A@_real nan_source = 0;
+    int i, k, bad = 0;
+    for (i = 0; i < @N@; ++i) {
+        in.theta[i] = (@A@_real)0.1; in.dtheta[i] = (@A@_real)0.2; in.yd[i] = (@A@_real)0.3;
+        in.dyd[i] = zero; in.ddyd[i] = zero;
+    }
+    if (@A@_dobc_init(&s, &in, (@A@_real)1e-3) != @U@_OK) return 3;
+    if (@A@_dobc_estimate(&s, &in, dhat) != @U@_OK) return 4;
+    for (k = 0; k < @N@; ++k) {
+        @A@_dobc_state t = s;
+        t.u[k] = nan_source / nan_source;
+        for (i = 0; i < @N@; ++i) dhat[i] = 12345;
+        bad += @A@_dobc_estimate(&t, &in, dhat) != @U@_ENONFINITE || dhat[0] != 12345;
+    }
+    printf("bad %d\n", bad);
+    return bad != 0;
+}
+"""
+
+
+def test_dobc_estimate_of_the_implicit_build_refuses_a_nonfinite_held_u(paper, implicit_files, tmp_path):
+    """The whole state is checked (as every entry point does), the held u that eq. (22)'s dhat does not
+    read included: a NaN there gives ENONFINITE and leaves dhat untouched, in C and in Python."""
+    _, d = paper
+    a, c = d.arm.name, implicit_files / "c"
+    (tmp_path / "drv.c").write_text(ESTIMATE_DRIVER.replace("@A@", a).replace("@U@", a.upper()).replace("@N@", str(d.n)))
+    exe = tmp_path / "est"
+    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{c}", "-o", str(exe),
+                    str(tmp_path / "drv.c"), str(c / f"{a}.c"), str(c / f"{a}_kernels.c"), "-lm"], check=True)
+    proc = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout == "bad 0\n", proc.stdout
+    m = _module(implicit_files / "python" / f"{a}.py")
+    inp = m.Input(*([0.1 * (f + 1)] * d.n for f in range(5)))
+    s = m.DobcState()
+    assert m.dobc_init(s, inp, 1e-3) == m.OK and m.dobc_estimate(s, inp)[0] == m.OK
+    s.u = [float("nan")] + list(s.u[1:])
+    assert m.dobc_estimate(s, inp) == (m.ENONFINITE, None)

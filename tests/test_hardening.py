@@ -80,8 +80,20 @@ def test_fuzz_driver_under_valgrind(trees, tmp_path):
     _passed(proc.stdout, VALGRIND_ITERATIONS)
 
 
-def test_fuzz_driver_detects_a_broken_contract(trees, tmp_path):
-    """The driver can fail: a library that writes u before its finiteness check is caught."""
+BROKEN = {
+    # u written before the finiteness check
+    "writes u first": ("    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;\n    glasgow_2link_kernel_mpc(",
+                       "    u[0] = 0;\n    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;\n    glasgow_2link_kernel_mpc("),
+    # npid_init accepts a non-finite input: OK with a finite (zero) state, caught by the code's check
+    "accepts NaN": ("    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;\n    for (i = 0; i < N; ++i) s->int_e[i] = 0;",
+                    "    (void)in;\n    for (i = 0; i < N; ++i) s->int_e[i] = 0;"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(BROKEN))
+def test_fuzz_driver_detects_a_broken_contract(trees, tmp_path, fault):
+    """The driver can fail: a library that writes u before its finiteness check, or returns OK for a
+    non-finite input, is caught."""
     src = trees["glasgow_2link", "double", "baked"]
     broken = tmp_path / "broken"
     broken.mkdir()
@@ -89,9 +101,9 @@ def test_fuzz_driver_detects_a_broken_contract(trees, tmp_path):
         (broken / f.name).write_text(f.read_text())
     glue = broken / "glasgow_2link.c"
     text = glue.read_text()
-    marker = "    if (!input_finite(in)) return GLASGOW_2LINK_ENONFINITE;\n    glasgow_2link_kernel_mpc("
-    assert marker in text
-    glue.write_text(text.replace(marker, "    u[0] = 0;\n" + marker))
+    marker, replacement = BROKEN[fault]
+    assert text.count(marker) == 1
+    glue.write_text(text.replace(marker, replacement))
     exe = _fuzz(broken, "glasgow_2link", False, tmp_path / "fz", ["-O1"])
     proc = subprocess.run([str(exe), "2000"], capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0 and "FAIL" in proc.stdout

@@ -3,9 +3,12 @@
  * Compile with -DARM=<arm> -DARM_H='"<arm>.h"' [-DRUNTIME] and the library sources.
  * For ITER iterations it builds inputs from a small PRNG in several regimes (ordinary,
  * extreme: |x| up to 1e6 and 1e300, NaN, +-Inf, tiny dt, negative dt), calls every
- * entry point and checks the contract: a non-zero code leaves the state bit-for-bit
- * untouched and u and the clipped mask unwritten; a zero code gives finite u, a finite
- * state and a mask with bits of existing joints only (mpc_step takes a NULL mask).
+ * entry point and checks the contract: a dt that is not finite and > 0 gives EDT from the
+ * steps, else a non-finite input or state ENONFINITE (the code is checked, not only its
+ * being non-zero: a library that returned OK with a finite u fails); a non-zero code leaves
+ * the state bit-for-bit untouched and u and the clipped mask unwritten; a zero code gives
+ * finite u, a finite state and a mask with bits of existing joints only (mpc_step takes a
+ * NULL mask).
  * Prints "N passed, N failed"; exits non-zero on any failure. */
 #include <math.h>
 #include <stdio.h>
@@ -19,6 +22,8 @@
 #define FN(name) CAT(ARM, CAT(_, name))
 #define T(name) CAT(ARM, CAT(_, name))
 #define NJ CAT(ARM_UPPER, _N)
+#define ENONFINITE CAT(ARM_UPPER, _ENONFINITE)
+#define EDT CAT(ARM_UPPER, _EDT)
 
 #ifdef RUNTIME
 #define P &params,
@@ -79,7 +84,7 @@ int main(int argc, char **argv)
         real u[NJ], u0[NJ], P_[NJ * NJ], D_[NJ * NJ], I_[NJ * NJ], dt;
         const T(mask) unset = (T(mask))0xA5A5u << NJ;   /* bits no joint owns */
         T(mask) clip = unset;
-        int i, code, regime = (int)(next_u64() % 6), ok = 1;
+        int i, code, regime = (int)(next_u64() % 6), ok = 1, bad_in, bad_dt;
         for (i = 0; i < NJ; ++i) { /* mostly ordinary values, some fields in another regime */
             in.theta[i] = sample((next_u64() % 4 == 0) ? regime : 0);
             in.dtheta[i] = sample((next_u64() % 4 == 0) ? regime : 0);
@@ -91,10 +96,15 @@ int main(int argc, char **argv)
             u[i] = u0[i] = (real)12345.0;
         }
         dt = (next_u64() % 10 == 0) ? sample((int)(next_u64() % 6)) : (real)1e-3;
+        bad_in = !(finite_all(in.theta, NJ) && finite_all(in.dtheta, NJ) && finite_all(in.yd, NJ)
+                   && finite_all(in.dyd, NJ) && finite_all(in.ddyd, NJ));
+        bad_dt = !(isfinite(dt) && dt > 0);
         ns0 = ns;
         ds0 = ds;
         FN(gains)(P in.theta, P_, D_, I_);
         code = FN(npid_step)(P &ns, &in, dt, u, &clip);
+        if (bad_dt) ok &= code == EDT;
+        else if (bad_in || !finite_all(ns0.int_e, NJ)) ok &= code == ENONFINITE;
         if (code != 0) {
             ok &= memcmp(&ns, &ns0, sizeof ns) == 0 && memcmp(u, u0, sizeof u) == 0 && clip == unset;
             ++errors;
@@ -104,6 +114,8 @@ int main(int argc, char **argv)
         memcpy(u, u0, sizeof u);
         clip = unset;
         code = FN(dobc_step)(P &ds, &in, dt, u, &clip);
+        if (bad_dt) ok &= code == EDT;
+        else if (bad_in || !finite_all(ds0.z, NJ)) ok &= code == ENONFINITE;
         if (code != 0) {
             ok &= memcmp(&ds, &ds0, sizeof ds) == 0 && memcmp(u, u0, sizeof u) == 0 && clip == unset;
             ++errors;
@@ -112,11 +124,14 @@ int main(int argc, char **argv)
         }
         memcpy(u, u0, sizeof u);
         code = FN(mpc_step)(P &in, u, NULL);
+        ok &= !bad_in || code == ENONFINITE;
         ok &= code != 0 ? memcmp(u, u0, sizeof u) == 0 : finite_all(u, NJ);
         ds0 = ds;
         code = FN(dobc_init)(P &ds, &in);
+        ok &= !bad_in || code == ENONFINITE;
         ok &= code != 0 ? memcmp(&ds, &ds0, sizeof ds) == 0 : finite_all(ds.z, NJ);
         code = FN(npid_init)(P &ns, &in);
+        ok &= !bad_in || code == ENONFINITE;
         ok &= code != 0 || (finite_all(ns.int_e, NJ) && ns.int_e[0] == 0);
         if (ok) {
             ++passed;

@@ -9,25 +9,7 @@
 #include <string.h>
 
 #include ARM_H
-
-#define CAT2(a, b) a##b
-#define CAT(a, b) CAT2(a, b)
-#define T(name) CAT(ARM, CAT(_, name))
-#define C(name) CAT(ARM_UPPER, CAT(_, name))
-#define NJ C(N)
-
-typedef T(real) real;
-
-static int cases, failed;
-
-static void expect(const char *what, int ok)
-{
-    ++cases;
-    if (!ok) {
-        ++failed;
-        printf("FAIL %s\n", what);
-    }
-}
+#include "cases.h"
 
 static void ordinary(T(input) *in)
 {

@@ -19,7 +19,10 @@ typedef char real_bits_have_the_size_of_real[sizeof(real_bits) == sizeof(real) ?
 
 /* 1 when every x[i] is finite: not every exponent bit set. The bits are read through
  * memcpy, not with isfinite(), which -ffast-math, -ffinite-math-only, -Ofast or
- * -fno-honor-nans/-infinities may fold to 1: the error codes hold under any flags. */
+ * -fno-honor-nans/-infinities may fold to 1: a non-finite input, state or dt gives its error
+ * code under any flags (its own bits are tested before any arithmetic); a result that overflows
+ * from finite inputs is caught where the compiler cannot assume it away (finite-math flags let
+ * it treat an overflowing operation as undefined). */
 static int finite_all(const real *x, size_t count)
 {
     size_t i;

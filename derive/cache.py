@@ -53,8 +53,7 @@ def code_files(root: Path) -> list[Path]:
     for folder, subfolders, names in os.walk(root):
         subfolders[:] = [x for x in subfolders if x != "__pycache__"]
         found += [Path(folder, name) for name in names]
-    return [p for p in sorted(found)
-            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so")]
+    return [p for p in sorted(found) if p.is_file() and p.suffix not in (".pyc", ".so")]
 
 
 def read_files(source: Path) -> list[tuple[str, bytes]] | None:

@@ -14,7 +14,8 @@ for C q' and 199 for g.
 The generated C ``npid_step``, ``dobc_step`` and ``mom_step`` (gcc -O2, values baked in)
 per call, timed in turns in one process, beside Pinocchio's C++ ``rnea(q, v, a)`` of the
 same arm (benchmarks/pinocchio_rnea_urdf.cpp, the model Python's pin.buildModelFromUrdf
-reads, fingers locked), run before and after them: rnea alone, the dominant part of the
+reads, fingers locked), in alternated runs (Pinocchio, steps, ..., steps, Pinocchio: ROUNDS of
+the steps), each side the best of its runs: rnea alone, the dominant part of the
 same law (J a + bias), not the whole u; all over 16 varying inputs, best of 5 repeats, each
 step from the state its init gives at its input (no joint clipped: the driver counts and the run
 refuses a clipped step; carried from call to call over unrelated inputs the states drifted to the
@@ -58,6 +59,7 @@ WIDE_ANGLES = 0.36   # angle step of the wide inputs, +-2.88 rad (the timed inpu
 
 
 ITERATIONS, REPEATS = 200_000, 5
+ROUNDS = 3           # runs of the steps, alternated with ROUNDS + 1 of Pinocchio (alternated)
 HERE = Path(__file__).resolve().parent
 C_DRIVER = r"""/* Timing driver of benchmarks/spatial.py (not product code). */
 #define _POSIX_C_SOURCE 199309L
@@ -138,17 +140,24 @@ def _ns(out: str, label: str) -> float:
 STEPS = ("npid_step", "dobc_step", "mom_step")
 
 
+def build_steps(arm_name: str, n: int, c: Path, work: Path) -> Path:
+    """The timing driver (:data:`C_DRIVER`) built with the generated C library of ``c`` (gcc -O2)."""
+    (c / "bench_driver.c").write_text(C_DRIVER.replace("@ARM@", arm_name).replace("@N@", str(n)))
+    exe = work / f"bench_steps_{arm_name}"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-o", str(exe), str(c / "bench_driver.c"), str(c / f"{arm_name}.c"),
+                    str(c / f"{arm_name}_kernels.c"), "-lm"], check=True, capture_output=True)
+    return exe
+
+
 def step_ns(arm_name: str, n: int, c: Path, work: Path, scale: float | None = None,
-            angles: float | None = None) -> dict[str, float]:
+            angles: float | None = None, exe: Path | None = None) -> dict[str, float]:
     """ns per call of the generated C npid_step, dobc_step and mom_step (gcc -O2), the three
     timed in turns in one process (:data:`C_DRIVER`): no step clipped (AssertionError otherwise),
     or with ``scale`` times the inputs' yd'' (most steps clipped), the clipped share of each
     step's calls under ``"<step> clipped"``; ``angles``: the angle step of the inputs (angles
-    within +-8 steps; default 0.05, where no sine needs an argument reduction)."""
-    (c / "bench_driver.c").write_text(C_DRIVER.replace("@ARM@", arm_name).replace("@N@", str(n)))
-    exe = work / "bench_steps"
-    subprocess.run(["gcc", "-std=c99", "-O2", "-o", str(exe), str(c / "bench_driver.c"), str(c / f"{arm_name}.c"),
-                    str(c / f"{arm_name}_kernels.c"), "-lm"], check=True, capture_output=True)
+    within +-8 steps; default 0.05, where no sine needs an argument reduction); ``exe``: the
+    driver :func:`build_steps` built (else built here)."""
+    exe = build_steps(arm_name, n, c, work) if exe is None else exe
     extra = [] if scale is None and angles is None else [repr(0.2 if scale is None else scale)]
     extra += [] if angles is None else [repr(angles)]
     out = subprocess.run([str(exe), str(ITERATIONS), str(REPEATS), *extra],
@@ -160,6 +169,23 @@ def step_ns(arm_name: str, n: int, c: Path, work: Path, scale: float | None = No
     counts = next(line.split()[3:] for line in out.splitlines() if line.startswith("bad "))
     share = {f"{name} clipped": int(k) / (ITERATIONS * REPEATS) for name, k in zip(STEPS, counts)}
     return {name: _ns(out, name) for name in STEPS} | ({} if scale is None and angles is None else share)
+
+
+def alternated(arm_name: str, n: int, c: Path, work: Path, anchor) -> tuple[dict[str, float], float | None, list]:
+    """The steps (:func:`step_ns`) and the anchor (``anchor()``: Pinocchio's ns or None) timed in
+    ROUNDS alternated runs, anchor first and last (anchor, steps, anchor, ..., steps, anchor): each
+    figure the best of its runs, so that both sides are sampled alike on a shared machine (one
+    disturbed run of either no longer decides the ratio); and each round's (npid_step, best anchor
+    beside it) pair, for the spread."""
+    exe = build_steps(arm_name, n, c, work)
+    pins, runs = [anchor()], []
+    for _ in range(ROUNDS):
+        runs.append(step_ns(arm_name, n, c, work, exe=exe))
+        pins.append(anchor())
+    steps = {k: min(r[k] for r in runs) for k in STEPS}
+    known = [p for p in pins if p is not None]
+    rounds = [(r["npid_step"], min(p for p in pins[i:i + 2] if p is not None)) for i, r in enumerate(runs)] if known else []
+    return steps, (min(known) if known else None), rounds
 
 
 def pinocchio_rnea_ns(name: str, arm, work: Path, label: str = "rnea") -> tuple[float | None, str]:
@@ -240,17 +266,15 @@ def measure(name: str) -> dict:
                                f"{arm.name}_plant.c"], cwd=c, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
         t_cc = time.perf_counter() - t
-        # Pinocchio before and after the steps, the best of both: the ratio sees the same load
-        rnea, why = pinocchio_rnea_ns(name, arm, Path(work))
-        steps = step_ns(arm.name, dyn.n, c, Path(work))
+        why = pinocchio_rnea_ns(name, arm, Path(work))[1]   # builds it once; why not, if it cannot
+        steps, rnea, rounds = alternated(arm.name, dyn.n, c, Path(work),
+                                         lambda: pinocchio_rnea_ns(name, arm, Path(work))[0])
         clipping = step_ns(arm.name, dyn.n, c, Path(work), CLIP_SCALE)
         wide = step_ns(arm.name, dyn.n, c, Path(work), angles=WIDE_ANGLES)
-        again, _ = pinocchio_rnea_ns(name, arm, Path(work))
-        rnea = min(rnea, again) if rnea is not None and again is not None else rnea
     kernels = {k.name: print_function(to_function(k), "c").operations for k in kernel_specs(d, ParamsMode.BAKED)}
     return {"name": name, "n": dyn.n, "dyn": t_dyn, "C": t_c, "ops": ops, "generate": t_gen, "cc": t_cc,
             "npid": steps["npid_step"], "steps": steps, "clipping": clipping, "wide": wide, "kernels": kernels, "rnea": rnea,
-            "why": why}
+            "why": why, "rounds": rounds}
 
 
 def run() -> Section:
@@ -292,10 +316,13 @@ def run() -> Section:
     note = ("ops: count_ops after sympy.cse with the arm's values put in, each rational constant one literal as in "
             "the generated code (derive.dynamics.identities.count_ops_cse); C q' is the RNEA bias without gravity; "
             "CasADi ops: the instructions of J and the bias as the generated code computes them "
-            "(derive.codegen.casadi_bridge). Times: one run each on the shared machine.")
+            "(derive.codegen.casadi_bridge). Derivation, generation and compile times: one run each on the shared machine.")
     note += (f" Steps: gcc -O2, values baked in, {ITERATIONS:,} calls over 16 varying inputs (no joint at a limit), "
              f"each from the state its init gives at its input, best of {REPEATS} repeats, the three steps in turns; "
-             "Pinocchio timed before and after them, the better kept. Inputs that clip: yd'' "
+             f"{ROUNDS} such runs alternated with {ROUNDS + 1} of Pinocchio (first and last), each figure the best of "
+             "its runs (rnea / npid_step of each run beside the better Pinocchio run next to it: "
+             + "; ".join(f"{r['name']} " + ", ".join(f"{p / s:.2f}x" for s, p in r["rounds"]) for r in rows if r["rounds"])
+             + "). Inputs that clip: yd'' "
              f"{CLIP_SCALE / 0.2:g} times as large, clipped steps (npid, dobc, mom): "
              + "; ".join(f"{r['name']} " + ", ".join(f"{r['clipping'][k + ' clipped']:.0%}" for k in STEPS)
                          for r in rows) + " (not a goal: J's factor is computed on a clipped DOBC step only). "

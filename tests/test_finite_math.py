@@ -17,6 +17,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import sympy as sp
 
 import derive
 from derive.codegen.emit import write_tree
@@ -42,9 +43,22 @@ FINITE_MATH = [
 ]
 
 
+def spin_joint(d) -> int | None:
+    """The first joint whose velocity enters G(theta, theta') (eq. 11) squared, so that
+    dtheta[j] = 1e200 (1e30 in float) makes the result overflow (nonfinite_cases.c's case of a
+    result that overflows from finite inputs); None when no velocity does (a 1-joint arm; a
+    prismatic joint's velocity never does)."""
+    G, s = d.numeric(d.dynamics.G), d.dynamics.sym
+    for j, dq in enumerate(s.dtheta):
+        if any(sp.Poly(sp.expand(g), dq).degree() >= 2 for g in G):
+            return j
+    return None
+
+
 @pytest.fixture(scope="module")
 def trees(tmp_path_factory) -> dict[tuple[str, str], Path]:
     d = derive.derive(derive.load_arm(ARM))
+    assert spin_joint(d) == 0
     root = tmp_path_factory.mktemp("finite_math")
     out = {}
     for real, mode in (("double", "baked"), ("float", "baked"), ("double", "runtime")):
@@ -53,12 +67,15 @@ def trees(tmp_path_factory) -> dict[tuple[str, str], Path]:
     return out
 
 
-def build(cc: str, flags: str, c_dir: Path, driver: Path, out: Path, runtime: bool = False, arm: str = ARM) -> Path:
-    """The library built with ``flags``, the driver without finite-math flags (same -flto)."""
+def build(cc: str, flags: str, c_dir: Path, driver: Path, out: Path, runtime: bool = False, arm: str = ARM,
+          spin: int | None = None) -> Path:
+    """The library built with ``flags``, the driver without finite-math flags (same -flto);
+    ``spin``: the driver's SPIN_JOINT (:func:`spin_joint`), when it has one."""
     lib_flags = flags.split()
     lto = ["-flto"] if "-flto" in lib_flags else []
     defines = [f"-DARM={arm}", f"-DARM_UPPER={arm.upper()}", f'-DARM_H="{arm}.h"', f"-I{c_dir}"]
     defines += ["-DRUNTIME"] if runtime else []
+    defines += [] if spin is None else [f"-DSPIN_JOINT={spin}"]
     objects = []
     for src, own in ((driver, ["-O2", *lto, *defines]), (c_dir / f"{arm}.c", [*lib_flags, f"-I{c_dir}"]),
                      (c_dir / f"{arm}_kernels.c", [*lib_flags, f"-I{c_dir}"])):
@@ -79,23 +96,24 @@ def run(exe: Path, *args: str) -> str:
     return proc.stdout
 
 
-def cases(n: int) -> str:
+def cases(n: int, spin: bool = True) -> str:
     """The last line of tests/fuzz/nonfinite_cases.c for an n-joint arm when every case passes:
-    60 cases of their own, and 114 per joint (a NaN, Inf and -Inf in the joint's element of each
-    of the 5 input fields, 7 entry points each; of each step's state, 3 steps)."""
-    return f"{60 + 114 * n} cases, 0 failed"
+    56 cases of their own, 4 more with a SPIN_JOINT (the steps and mpc_step on a result that
+    overflows), and 114 per joint (a NaN, Inf and -Inf in the joint's element of each of the 5
+    input fields, 7 entry points each; of each step's state, 3 steps)."""
+    return f"{56 + 4 * spin + 114 * n} cases, 0 failed"
 
 
 @pytest.mark.parametrize("real", ["double", "float"])
 @pytest.mark.parametrize("cc,flags", FINITE_MATH, ids=[f"{c} {f}" for c, f in FINITE_MATH])
 def test_error_codes_hold_under_finite_math_flags(trees, tmp_path, cc, flags, real):
-    exe = build(cc, flags, trees[real, "baked"], CASES, tmp_path / "cases")
+    exe = build(cc, flags, trees[real, "baked"], CASES, tmp_path / "cases", spin=0)
     assert run(exe).strip().splitlines()[-1] == cases(2)
 
 
 def test_error_codes_hold_under_finite_math_flags_with_runtime_parameters(trees, tmp_path):
     for cc in ("gcc", "clang"):
-        exe = build(cc, "-Ofast", trees["double", "runtime"], CASES, tmp_path / f"cases_{cc}", runtime=True)
+        exe = build(cc, "-Ofast", trees["double", "runtime"], CASES, tmp_path / f"cases_{cc}", runtime=True, spin=0)
         assert run(exe).strip().splitlines()[-1] == cases(2)
 
 
@@ -104,6 +122,7 @@ def chain5(tmp_path_factory) -> dict[str, Path]:
     """The 5-link chain (5 n = 25 input values, 5 state values: whole groups of the glue's lanes
     and a tail after them) in double and float."""
     d = derive.derive(planar_chain(5, gravity=9.81))
+    assert spin_joint(d) == 0
     root = tmp_path_factory.mktemp("finite_math_chain5")
     for real in ("double", "float"):
         write_tree(root / real, generate_files(d, b"", real, ParamsMode.BAKED))
@@ -113,8 +132,27 @@ def chain5(tmp_path_factory) -> dict[str, Path]:
 @pytest.mark.parametrize("real", ["double", "float"])
 @pytest.mark.parametrize("cc,flags", [("gcc", "-O2"), ("gcc", "-Ofast"), ("clang", "-Ofast")])
 def test_a_nonfinite_value_in_any_element_of_five_joints_gives_the_error_code(chain5, tmp_path, cc, flags, real):
-    exe = build(cc, flags, chain5[real], CASES, tmp_path / "cases", arm="chain5")
+    exe = build(cc, flags, chain5[real], CASES, tmp_path / "cases", arm="chain5", spin=0)
     assert run(exe).strip().splitlines()[-1] == cases(5)
+
+
+ROUND3 = ROOT / "tests" / "data" / "urdf" / "round3"
+
+
+@pytest.mark.parametrize("name, spin", [("tool", None), ("polar", 0)])
+def test_the_cases_fit_a_one_joint_arm_and_a_prismatic_joint(tmp_path, name, spin):
+    """The case of a result that overflows needs a joint whose velocity enters G squared: the
+    1-joint tool arm has none (its u is linear in theta'), and of the polar arm's revolute and
+    prismatic joints only the revolute one (the slider's r theta1'^2); the driver runs the case on
+    that joint, or not at all, and every other case as on any arm."""
+    d = derive.derive(derive.load_arm(ROUND3 / f"{name}.toml"))
+    assert spin_joint(d) == spin
+    if name == "polar":   # the prismatic joint's velocity: at most linear in every entry of G
+        G, s = d.numeric(d.dynamics.G), d.dynamics.sym
+        assert max(sp.Poly(sp.expand(g), s.dtheta[1]).degree() for g in G) < 2
+    write_tree(tmp_path / "tree", generate_files(d, b"", "double", ParamsMode.BAKED))
+    exe = build("gcc", "-O2", tmp_path / "tree" / "c", CASES, tmp_path / "cases", arm=d.arm.name, spin=spin)
+    assert run(exe).strip().splitlines()[-1] == cases(d.n, spin is not None)
 
 
 def test_the_cases_fail_where_isfinite_is_folded_away(trees, tmp_path):
@@ -131,7 +169,7 @@ def test_the_cases_fail_where_isfinite_is_folded_away(trees, tmp_path):
                   "    for (i = 0; i < count; ++i) if (!isfinite(x[i])) return 0;\n    return 1;\n}\n",
                   text, flags=re.S)
     glue.write_text("#include <math.h>\n" + text)
-    exe = build("gcc", "-O2 -ffast-math", c_dir, CASES, tmp_path / "cases")
+    exe = build("gcc", "-O2 -ffast-math", c_dir, CASES, tmp_path / "cases", spin=0)
     proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
     assert proc.returncode != 0 and "FAIL npid_step, theta[0] = NaN" in proc.stdout, proc.stdout
 

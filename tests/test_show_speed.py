@@ -17,7 +17,7 @@ import derive
 from derive.cli import show
 from derive.cli.notation import TextPrinter
 from derive.control import sampling
-from derive.control.mpc import gains
+from derive.control.mpc import gains, tbar
 from derive.control.radius import spectral_radius
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -71,6 +71,13 @@ def test_the_gain_formulas_are_factored_as_sympy_factors_them():
     """derive show prints k1(T1, T2), k2(T1, T2) (eq. 16-18) as gains returns them: factored."""
     for k in gains():
         assert sp.srepr(sp.factor(k)) == sp.srepr(k)
+
+
+def test_the_gain_formulas_are_the_trees_sympy_factor_gives_for_the_quotients_of_eq18():
+    """gains builds k1 = Tbar31 / Tbar33, k2 = Tbar32 / Tbar33 (eq. 16-18) in closed form: the same
+    SymPy trees as sp.factor of the quotients (what it computed before), term for term."""
+    for k, j in zip(gains(), (1, 2)):
+        assert sp.srepr(k) == sp.srepr(sp.factor(tbar(3, j) / tbar(3, 3)))
 
 
 def test_a_shown_entry_printed_as_its_terms_reads_as_doprint():

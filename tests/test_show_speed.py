@@ -152,3 +152,33 @@ def test_the_console_process_of_show_runs_without_the_cycle_collector_and_a_call
             "with contextlib.redirect_stdout(io.StringIO()):\n    assert main() == 0\n"
             "print(gc.isenabled(), gc.get_freeze_count() > 0)")
     assert _run(code) == "False True"
+
+
+class _Forgetful(dict):
+    """A store of zero-order holds that keeps nothing: every one computed anew."""
+
+    def get(self, key, default=None):
+        return default
+
+
+def test_the_zero_order_holds_shared_by_the_forms_searches_give_the_limits_computed_anew(monkeypatch):
+    """sample_limit keeps each subset's (Phi, Gamma) per (dt, A, Bu) (derive.control.sampling._ZOHS):
+    on my3 the forms' searches ask for the same ones (A, Bu the same bits for MPC, DOBC and NPID), and
+    every limit, raw value and worst point is the one found when each is computed anew."""
+    d = _my3()
+    shared = {o: sampling.limits(d, o) for o in sampling.OBSERVERS}
+    holds = sampling._ZOHS[(id(d), "holds")][1]
+    asked = []
+    real = sampling._zoh
+    monkeypatch.setattr(sampling, "_zoh", lambda L, dt: asked.append(L["A"].shape[0]) or real(L, dt))
+    again = derive.derive(derive.load_arm(DATA / "my3.toml"))
+    original = sampling._cached
+
+    def forgetful(store, d, key, make):
+        return _Forgetful() if store is sampling._ZOHS else original(store, d, key, make)
+
+    monkeypatch.setattr(sampling, "_cached", forgetful)
+    anew = {o: sampling.limits(again, o) for o in sampling.OBSERVERS}
+    whole = asked.count(len(sampling.operating_points(d)))   # the whole grid's: never kept
+    assert len(asked) - whole - len(holds) >= 10              # my3: 23 of 125 shared
+    assert anew == shared

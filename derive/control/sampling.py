@@ -129,6 +129,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
 
     rows: list = [None, L]   # the linearisation at the points of the last idx (the same subset or
                              # active set is asked for at every dt of a bracket or bisection)
+    # the plant's zero-order hold of a subset, per (dt, A, Bu) (_ZOHS): the forms' searches ask for the
+    # same dt on the same points, and A, Bu are often the same bits for every form (the plant's
+    # linearisation at u0, which is B^-1 G for every law at these points)
+    holds = _cached(_ZOHS, d, "holds", dict) if points is None else {}
 
     def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
         """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
@@ -138,8 +142,14 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         eigenvalues come first (``eigen_first``)."""
         if idx is not None and rows[0] is not idx:
             rows[:] = idx, {k: v[idx] for k, v in L.items()}
-        return _radii(loop, form, observer, dt, L if idx is None else rows[1], exact=False, rank=rank,
-                      eigen_first=dt <= DT_MIN)
+        M = L if idx is None else rows[1]
+        hold = None
+        if idx is not None:   # the whole grid's are not asked for twice (each at a bisection's result)
+            key = (dt, M["A"].shape, M["A"].tobytes(), M["Bu"].tobytes())
+            hold = holds.get(key)
+            if hold is None:
+                hold = holds[key] = _zoh(M, dt)
+        return spectral_radius(_transition(loop, form, observer, dt, M, hold), False, rank, dt <= DT_MIN)
 
     def done(lo: float, bad: int | None) -> SampleLimit:
         worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
@@ -266,15 +276,24 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
     return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
 
 
-def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:
-    """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring)."""
-    n, m = loop.n, 2 * loop.n
-    P = L["A"].shape[0]
-    aug = np.zeros((P, m + n, m + n))
+def _zoh(L: dict, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The plant's zero-order hold over dt at every operating point: (Phi, Gamma) = the blocks of
+    exp([A Bu; 0 0] dt) (P x 2n x 2n, P x 2n x n; its scaling is the stack's: the same stack, the same
+    bits)."""
+    m, n = L["A"].shape[-1], L["Bu"].shape[-1]
+    aug = np.zeros((L["A"].shape[0], m + n, m + n))
     aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
     E = _expm(aug * dt)
-    Phi, Gam = E[:, :m, :m], E[:, :m, m:]
+    return E[:, :m, :m], E[:, :m, m:]
+
+
+def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
+                hold: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """The sampled closed loop's transition matrix at every operating point (P x k x k; module
+    docstring); ``hold``: :func:`_zoh` of L at dt when the caller has it."""
+    n, m = loop.n, 2 * loop.n
+    P = L["A"].shape[0]
+    Phi, Gam = _zoh(L, dt) if hold is None else hold
     Ux, Uc = L["Ux"], L["Uc"]
     eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
@@ -367,6 +386,7 @@ _GRIDS: dict = {}
 _LINEAR: dict = {}
 _HINTS: dict = {}
 _LOOPS: dict = {}
+_ZOHS: dict = {}
 
 
 def _cached(store: dict, d, key, make):

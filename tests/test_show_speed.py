@@ -182,3 +182,34 @@ def test_the_zero_order_holds_shared_by_the_forms_searches_give_the_limits_compu
     whole = asked.count(len(sampling.operating_points(d)))   # the whole grid's: never kept
     assert len(asked) - whole - len(holds) >= 10              # my3: 23 of 125 shared
     assert anew == shared
+
+
+def test_width_counts_an_ascii_text_by_its_length_as_it_counts_every_text():
+    """derive.cli.notation.width's shortcut: no ASCII character is a combining mark."""
+    import unicodedata
+
+    from derive.cli.notation import width
+
+    assert all(unicodedata.combining(chr(c)) == 0 for c in range(128))
+    for text in ("", "J12 = 0.25 cos(θ₂)", "θ̇₁ + ė(0)", "ascii only, 0.5 * x", "a\u0301b"):
+        assert width(text) == sum(0 if unicodedata.combining(ch) else 1 for ch in text)
+
+
+def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_of_its_own_run():
+    """SampledLoop.linearise keeps J^-1 B, -J^-1 dG/d theta', dr per points and d theta''/d theta per
+    theta'' (derive.control.linear_loop): each form's arrays, after the others', are those of a loop that
+    linearises that form alone; MPC, DOBC and NPID share theta'' on my3 (kept), MOM does not."""
+    from derive.control.linear_loop import SampledLoop
+
+    d = _my3()
+    pts = sampling.operating_points(d)
+    Q, DQ = np.array([q for q, _ in pts]), np.array([dq for _, dq in pts])
+    shared = SampledLoop(d)
+    kept = []
+    for form in sampling.FORMS:
+        mine = shared.linearise(form, Q, DQ)
+        kept.append(shared._accel[0])
+        alone = SampledLoop(d).linearise(form, Q, DQ)
+        assert mine.keys() == alone.keys()
+        assert all(_same_bits(mine[k], alone[k]) for k in mine), form
+    assert kept[0] == kept[1] == kept[2] != kept[3]

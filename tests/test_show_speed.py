@@ -154,34 +154,23 @@ def test_the_console_process_of_show_runs_without_the_cycle_collector_and_a_call
     assert _run(code) == "False True"
 
 
-class _Forgetful(dict):
-    """A store of zero-order holds that keeps nothing: every one computed anew."""
-
-    def get(self, key, default=None):
-        return default
-
-
 def test_the_zero_order_holds_shared_by_the_forms_searches_give_the_limits_computed_anew(monkeypatch):
-    """sample_limit keeps each subset's (Phi, Gamma) per (dt, A, Bu) (derive.control.sampling._ZOHS):
-    on my3 the forms' searches ask for the same ones (A, Bu the same bits for MPC, DOBC and NPID), and
-    every limit, raw value and worst point is the one found when each is computed anew."""
-    d = _my3()
-    shared = {o: sampling.limits(d, o) for o in sampling.OBSERVERS}
-    holds = sampling._ZOHS[(id(d), "holds")][1]
+    """limits() hands its forms' searches one store of zero-order holds per (dt, A, Bu)
+    (derive.control.sampling.sample_limit's ``holds``): on my3 they ask for the same ones (A, Bu the
+    same bits for MPC, DOBC and NPID), and every limit, raw value and worst point is the one found when
+    each is computed anew (a store per search)."""
     asked = []
-    real = sampling._zoh
-    monkeypatch.setattr(sampling, "_zoh", lambda L, dt: asked.append(L["A"].shape[0]) or real(L, dt))
+    real = sampling.zoh
+    monkeypatch.setattr(sampling, "zoh", lambda L, dt: asked.append(dt) or real(L, dt))
+    d = derive.derive(derive.load_arm(DATA / "my3.toml"))
+    shared = {o: sampling.limits(d, o) for o in sampling.OBSERVERS}
+    computed = len(asked)
+    original = sampling.sample_limit
+    monkeypatch.setattr(sampling, "sample_limit", lambda *a, holds=None, **k: original(*a, **k))
     again = derive.derive(derive.load_arm(DATA / "my3.toml"))
-    original = sampling._cached
-
-    def forgetful(store, d, key, make):
-        return _Forgetful() if store is sampling._ZOHS else original(store, d, key, make)
-
-    monkeypatch.setattr(sampling, "_cached", forgetful)
     anew = {o: sampling.limits(again, o) for o in sampling.OBSERVERS}
-    whole = asked.count(len(sampling.operating_points(d)))   # the whole grid's: never kept
-    assert len(asked) - whole - len(holds) >= 10              # my3: 23 of 125 shared
     assert anew == shared
+    assert (len(asked) - computed) - computed >= 10   # computed anew what was shared (my3: 23 of 134)
 
 
 def test_width_counts_an_ascii_text_by_its_length_as_it_counts_every_text():
@@ -213,3 +202,16 @@ def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_
         assert mine.keys() == alone.keys()
         assert all(_same_bits(mine[k], alone[k]) for k in mine), form
     assert kept[0] == kept[1] == kept[2] != kept[3]
+
+
+def test_the_kept_zero_order_holds_drop_the_oldest_beyond_their_budget(monkeypatch):
+    from derive.control import zoh
+
+    L = {"A": np.zeros((10, 4, 4)), "Bu": np.zeros((10, 4, 2))}
+    each = 10 * 6 * 6 * 8 + L["A"].nbytes + L["Bu"].nbytes      # an exp of 10 stacked 6 x 6, and the key's bytes
+    monkeypatch.setattr(zoh, "HOLDS_BYTES", 3 * each)
+    holds = {}
+    for dt in (1.0, 2.0, 3.0, 4.0, 5.0):
+        holds[(dt, L["A"].shape, L["A"].tobytes(), L["Bu"].tobytes())] = zoh.zoh(L, dt)
+        zoh.bound(holds)
+    assert [k[0] for k in holds] == [3.0, 4.0, 5.0]

@@ -17,7 +17,7 @@ import derive
 from derive.cli import show
 from derive.cli.notation import TextPrinter
 from derive.control import sampling
-from derive.control.mpc import gains
+from derive.control.mpc import gains, tbar
 from derive.control.radius import spectral_radius
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -71,6 +71,13 @@ def test_the_gain_formulas_are_factored_as_sympy_factors_them():
     """derive show prints k1(T1, T2), k2(T1, T2) (eq. 16-18) as gains returns them: factored."""
     for k in gains():
         assert sp.srepr(sp.factor(k)) == sp.srepr(k)
+
+
+def test_the_gain_formulas_are_the_trees_sympy_factor_gives_for_the_quotients_of_eq18():
+    """gains builds k1 = Tbar31 / Tbar33, k2 = Tbar32 / Tbar33 (eq. 16-18) in closed form: the same
+    SymPy trees as sp.factor of the quotients (what it computed before), term for term."""
+    for k, j in zip(gains(), (1, 2)):
+        assert sp.srepr(k) == sp.srepr(sp.factor(tbar(3, j) / tbar(3, 3)))
 
 
 def test_a_shown_entry_printed_as_its_terms_reads_as_doprint():
@@ -145,3 +152,66 @@ def test_the_console_process_of_show_runs_without_the_cycle_collector_and_a_call
             "with contextlib.redirect_stdout(io.StringIO()):\n    assert main() == 0\n"
             "print(gc.isenabled(), gc.get_freeze_count() > 0)")
     assert _run(code) == "False True"
+
+
+def test_the_zero_order_holds_shared_by_the_forms_searches_give_the_limits_computed_anew(monkeypatch):
+    """limits() hands its forms' searches one store of zero-order holds per (dt, A, Bu)
+    (derive.control.sampling.sample_limit's ``holds``): on my3 they ask for the same ones (A, Bu the
+    same bits for MPC, DOBC and NPID), and every limit, raw value and worst point is the one found when
+    each is computed anew (a store per search)."""
+    asked = []
+    real = sampling.zoh
+    monkeypatch.setattr(sampling, "zoh", lambda L, dt: asked.append(dt) or real(L, dt))
+    d = derive.derive(derive.load_arm(DATA / "my3.toml"))
+    shared = {o: sampling.limits(d, o) for o in sampling.OBSERVERS}
+    computed = len(asked)
+    original = sampling.sample_limit
+    monkeypatch.setattr(sampling, "sample_limit", lambda *a, holds=None, **k: original(*a, **k))
+    again = derive.derive(derive.load_arm(DATA / "my3.toml"))
+    anew = {o: sampling.limits(again, o) for o in sampling.OBSERVERS}
+    assert anew == shared
+    assert (len(asked) - computed) - computed >= 10   # computed anew what was shared (my3: 23 of 134)
+
+
+def test_width_counts_an_ascii_text_by_its_length_as_it_counts_every_text():
+    """derive.cli.notation.width's shortcut: no ASCII character is a combining mark."""
+    import unicodedata
+
+    from derive.cli.notation import width
+
+    assert all(unicodedata.combining(chr(c)) == 0 for c in range(128))
+    for text in ("", "J12 = 0.25 cos(θ₂)", "θ̇₁ + ė(0)", "ascii only, 0.5 * x", "a\u0301b"):
+        assert width(text) == sum(0 if unicodedata.combining(ch) else 1 for ch in text)
+
+
+def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_of_its_own_run():
+    """SampledLoop.linearise keeps J^-1 B, -J^-1 dG/d theta', dr per points and d theta''/d theta per
+    theta'' (derive.control.linear_loop): each form's arrays, after the others', are those of a loop that
+    linearises that form alone; MPC, DOBC and NPID share theta'' on my3 (kept), MOM does not."""
+    from derive.control.linear_loop import SampledLoop
+
+    d = _my3()
+    pts = sampling.operating_points(d)
+    Q, DQ = np.array([q for q, _ in pts]), np.array([dq for _, dq in pts])
+    shared = SampledLoop(d)
+    kept = []
+    for form in sampling.FORMS:
+        mine = shared.linearise(form, Q, DQ)
+        kept.append(shared._accel[0])
+        alone = SampledLoop(d).linearise(form, Q, DQ)
+        assert mine.keys() == alone.keys()
+        assert all(_same_bits(mine[k], alone[k]) for k in mine), form
+    assert kept[0] == kept[1] == kept[2] != kept[3]
+
+
+def test_the_kept_zero_order_holds_drop_the_oldest_beyond_their_budget(monkeypatch):
+    from derive.control import zoh
+
+    L = {"A": np.zeros((10, 4, 4)), "Bu": np.zeros((10, 4, 2))}
+    each = 10 * 6 * 6 * 8 + L["A"].nbytes + L["Bu"].nbytes      # an exp of 10 stacked 6 x 6, and the key's bytes
+    monkeypatch.setattr(zoh, "HOLDS_BYTES", 3 * each)
+    holds = {}
+    for dt in (1.0, 2.0, 3.0, 4.0, 5.0):
+        holds[(dt, L["A"].shape, L["A"].tobytes(), L["Bu"].tobytes())] = zoh.zoh(L, dt)
+        zoh.bound(holds)
+    assert [k[0] for k in holds] == [3.0, 4.0, 5.0]

@@ -70,7 +70,9 @@ class Names:
 
 
 def width(text: str) -> int:
-    """Columns ``text`` takes on a terminal (combining marks take none)."""
+    """Columns ``text`` takes on a terminal (combining marks take none; an ASCII text has none)."""
+    if text.isascii():
+        return len(text)
     return sum(0 if unicodedata.combining(ch) else 1 for ch in text)
 
 

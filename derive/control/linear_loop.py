@@ -140,13 +140,32 @@ class SampledLoop(LinearisedLaws):
     (derive.control.sampling's module docstring)."""
 
     _plant_key: tuple | None = None   # the points _plant_at was last asked for
+    _accel: tuple | None = None       # (theta'' bytes, its block of A) at those points (_position_block)
 
-    def _plant_at(self, Q: np.ndarray, DQ: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """J, G and dG/d(theta, theta') at the points (the same for every form: kept for the last points)."""
+    def _plant_at(self, Q: np.ndarray, DQ: np.ndarray) -> tuple[np.ndarray, ...]:
+        """J, G, dG/d(theta, theta') at the points and what the linearisation takes from them alone:
+        J^-1 B, -J^-1 dG/d theta' and dr (the same for every form: kept for the last points)."""
         key = (Q.shape, Q.tobytes(), DQ.tobytes())
         if self._plant_key != key:
-            self._plant_key, self._plant = key, (self.mass(Q), *self.bias(Q, DQ))
+            n, P = self.n, Q.shape[0]
+            J = self.mass(Q)
+            G0, dG = self.bias(Q, DQ)
+            JB = np.linalg.solve(J, np.broadcast_to(self.B, (P, n, n)))
+            velocity = -np.linalg.solve(J, dG[:, :, n:])
+            # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
+            # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
+            dr = dG - np.concatenate([np.zeros((P, n, n)), np.broadcast_to(self.W, (P, n, n))], axis=-1)
+            self._plant_key, self._plant, self._accel = key, (J, G0, dG, JB, velocity, dr), None
         return self._plant
+
+    def _position_block(self, Q: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        """d theta''/d theta = -J^-1 (dG/d theta + d(J a)/d theta |a=theta'') at the points of the last
+        _plant_at: kept for the last theta'' (the laws' u0 often give every form the same bits)."""
+        key = acc.tobytes()
+        if self._accel is None or self._accel[0] != key:
+            J, _, dG = self._plant[:3]
+            self._accel = key, -np.linalg.solve(J, dG[:, :, :self.n] + self.mass_jacobian(Q, acc))
+        return self._accel[1]
 
     def linearise(self, form: str, Q: np.ndarray, DQ: np.ndarray) -> dict[str, np.ndarray]:
         """Jacobians at the operating points (rows of Q, DQ: theta0, theta0', with the reference
@@ -158,22 +177,19 @@ class SampledLoop(LinearisedLaws):
         Q, DQ = np.asarray(Q, dtype=float), np.asarray(DQ, dtype=float)
         n, P = self.n, Q.shape[0]
         ref = np.hstack([Q @ self.C.T, DQ @ self.C.T, np.zeros((P, n))])
-        J, G0, dG = self._plant_at(Q, DQ)
+        J, G0, dG, JB, velocity, dr = self._plant_at(Q, DQ)
         p0 = np.einsum("pij,pj->pi", J, DQ)               # m = J theta': r = 0, dhat = 0 at the point
         state = {"dobc": -DQ @ self.W.T, "mom": p0}.get(form, np.zeros((P, n)))
         u0, U = self.law(form, Q, DQ, ref, state)
         acc = np.linalg.solve(J, (u0 @ self.B.T - G0)[..., None])[..., 0]
         A = np.zeros((P, 2 * n, 2 * n))
         A[:, :n, n:] = np.eye(n)
-        A[:, n:, :n] = -np.linalg.solve(J, dG[:, :, :n] + self.mass_jacobian(Q, acc))
-        A[:, n:, n:] = -np.linalg.solve(J, dG[:, :, n:])
+        A[:, n:, :n] = self._position_block(Q, acc)
+        A[:, n:, n:] = velocity
         Bu = np.zeros((P, 2 * n, n))
-        Bu[:, n:, :] = np.linalg.solve(J, np.broadcast_to(self.B, (P, n, n)))
-        # the observer's r = G - B u - W theta' - z vanishes at the point (z0 = -W theta0', u0 = B^-1 G),
-        # so z_{k+1} = z + dt W A^-1 r has the Jacobian dt W A^-1 dr (A = J, or J + dt W)
-        dr = dG - np.concatenate([np.zeros((P, n, n)), np.broadcast_to(self.W, (P, n, n))], axis=-1)
+        Bu[:, n:, :] = JB
         out = {"A": A, "Bu": Bu, "Ux": U[:, :, :2 * n], "Uc": U[:, :, 2 * n:] if form != "mpc" else U[:, :, :0],
-               "J": J, "dr": dr,
+               "J": J, "dr": dr.copy(),
                "Xi": self.xi(Q, DQ, ref, state) if form == "npid" else np.zeros((P, n, 3 * n))}
         if form == "mom":
             out["R"] = self.rate_jacobian(Q, DQ, p0, u0)

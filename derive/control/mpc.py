@@ -34,11 +34,20 @@ def tbar(i: int, j: int, t1: sp.Expr = T1, t2: sp.Expr = T2) -> sp.Expr:
 
 @functools.lru_cache(maxsize=8)
 def gains(t1: sp.Expr = T1, t2: sp.Expr = T2) -> tuple[sp.Expr, sp.Expr]:
-    """(k1, k2) of eq. (16-17): K1 = k1 I, K2 = k2 I; symbolic by default, factored (sp.factor: a
-    second factor leaves them as they are). Cached (SymPy expressions are immutable): every
-    derivation and ``derive show`` read the same symbolic pair, 2 factorisations of about 10 ms."""
-    return (sp.factor(tbar(3, 1, t1, t2) / tbar(3, 3, t1, t2)),
-            sp.factor(tbar(3, 2, t1, t2) / tbar(3, 3, t1, t2)))
+    """(k1, k2) of eq. (16-17): K1 = k1 I, K2 = k2 I; symbolic by default, factored,
+
+        k1 = Tbar31 / Tbar33 = 10 (t1^2 + t1 t2 + t2^2) / (3 q),
+        k2 = Tbar32 / Tbar33 = 5 (t1 + t2)(t1^2 + t2^2) / (2 q),   q = t1^4 + t1^3 t2 + ... + t2^4,
+
+    built as the products sp.factor gives for the quotients of eq. (18) (for the symbols T1, T2 the
+    same SymPy trees, term for term: tests/test_show_speed.py; numbers for numbers), without its two
+    factorisations (about 20 ms of ``derive show``). ``derive check`` proves the symbolic pair the
+    minimiser of (14) (derive.proofs.project). Cached (SymPy expressions are immutable): every
+    derivation and ``derive show`` read the same pair."""
+    q = t1 ** 4 + t1 ** 3 * t2 + t1 ** 2 * t2 ** 2 + t1 * t2 ** 3 + t2 ** 4
+    # three factors or more: Mul does not distribute the rational over the sum (with two it does)
+    return (sp.Mul(sp.Rational(10, 3), t1 ** 2 + t1 * t2 + t2 ** 2, 1 / q),
+            sp.Mul(sp.Rational(5, 2), t1 + t2, t1 ** 2 + t2 ** 2, 1 / q))
 
 
 @compact_repr

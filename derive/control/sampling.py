@@ -68,6 +68,7 @@ import numpy as np
 from derive.control.grid import Grid, grid
 from derive.control.linear_loop import SampledLoop
 from derive.control.radius import spectral_radius
+from derive.control.zoh import bound, zoh
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
@@ -110,10 +111,13 @@ def _grid(d) -> Grid:
     return _cached(_GRIDS, d, "grid", lambda: grid(d))
 
 
-def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None) -> SampleLimit:
+def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None,
+                 holds: dict | None = None) -> SampleLimit:
     """The largest stable sample time of ``form`` (FORMS) with the observer discretisation ``observer``
     (OBSERVERS; the module docstring), with the stated margin (``loop``: the derivation's SampledLoop
-    when the caller has it). Raises ValueError for an unknown form or discretisation."""
+    when the caller has it; ``holds``: the plant's zero-order holds of the search's subsets per (dt, A,
+    Bu), shared with the other forms' searches on the same points, :func:`limits`). Raises ValueError
+    for an unknown form or discretisation."""
     if form not in FORMS or observer not in OBSERVERS + (_Z_ONLY,):
         raise ValueError(f"sample_limit: expected a form of {FORMS} and an observer of {OBSERVERS}, "
                          f"got {form!r}, {observer!r}")
@@ -129,6 +133,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
 
     rows: list = [None, L]   # the linearisation at the points of the last idx (the same subset or
                              # active set is asked for at every dt of a bracket or bisection)
+    # the plant's zero-order hold of a subset, per (dt, A, Bu): the forms' searches ask for the same dt on
+    # the same points, and A, Bu are often the same bits for every form (the plant's linearisation at u0,
+    # which is B^-1 G for every law at these points); the oldest go beyond zoh.HOLDS_BYTES
+    holds = {} if holds is None else holds
 
     def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
         """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
@@ -138,8 +146,15 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         eigenvalues come first (``eigen_first``)."""
         if idx is not None and rows[0] is not idx:
             rows[:] = idx, {k: v[idx] for k, v in L.items()}
-        return _radii(loop, form, observer, dt, L if idx is None else rows[1], exact=False, rank=rank,
-                      eigen_first=dt <= DT_MIN)
+        M = L if idx is None else rows[1]
+        hold = None
+        if idx is not None:   # the whole grid's are not asked for twice (each at a bisection's result)
+            key = (dt, M["A"].shape, M["A"].tobytes(), M["Bu"].tobytes())
+            hold = holds.get(key)
+            if hold is None:
+                hold = holds[key] = zoh(M, dt)
+                bound(holds)
+        return spectral_radius(_transition(loop, form, observer, dt, M, hold), False, rank, dt <= DT_MIN)
 
     def done(lo: float, bad: int | None) -> SampleLimit:
         worst = None if bad is None else tuple(tuple(float(x) for x in v) for v in pts[bad])
@@ -222,43 +237,6 @@ def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | Non
         dt = min(dt * 2, stop)
 
 
-_TAYLOR_DEGREE, _PS_STEP = 18, 4   # _expm's Taylor polynomial and its Paterson-Stockmeyer step
-
-
-def _expm(M: np.ndarray) -> np.ndarray:
-    """exp of a stack of square matrices (... x k x k): scaling and squaring of a degree-18 Taylor
-    polynomial (relative error below 1e-15 at norms <= 1/2 after scaling), the polynomial evaluated
-    by Paterson and Stockmeyer's scheme (Higham, Functions of Matrices, 2008, sec. 4.4.3: A^2, A^3,
-    A^4, then Horner's rule in A^4 over coefficients that are combinations of I, A, A^2, A^3): 7
-    matrix products instead of 18."""
-    norm = np.abs(M).sum(axis=-1).max(axis=-1).max()
-    s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
-    A = M / (2.0 ** s)
-    powers = [None, A]
-    for _ in range(2, _PS_STEP):
-        powers.append(powers[-1] @ A)
-    top = powers[-1] @ A                                       # A^4
-    coeff = [1.0 / math.factorial(k) for k in range(_TAYLOR_DEGREE + 1)]
-    diagonal = np.arange(M.shape[-1])
-    scratch = np.empty_like(A)
-
-    def block(j: int) -> np.ndarray:   # sum_i coeff[4 j + i] A^i, in place; A^0 = I: the diagonal only
-        out = np.zeros_like(A)
-        for i in range(1, _PS_STEP):
-            if _PS_STEP * j + i <= _TAYLOR_DEGREE:
-                out += np.multiply(powers[i], coeff[_PS_STEP * j + i], out=scratch)
-        out[..., diagonal, diagonal] += coeff[_PS_STEP * j]
-        return out
-
-    E = block(_TAYLOR_DEGREE // _PS_STEP)
-    for j in range(_TAYLOR_DEGREE // _PS_STEP - 1, -1, -1):
-        E = E @ top
-        E += block(j)
-    for _ in range(s):
-        E = E @ E
-    return E
-
-
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
            rank: bool = False, eigen_first: bool = False) -> np.ndarray:
     """Spectral radius of the sampled closed loop at every operating point (module docstring; not
@@ -266,15 +244,13 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
     return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
 
 
-def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict) -> np.ndarray:
+def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
+                hold: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring)."""
+    docstring); ``hold``: :func:`derive.control.zoh.zoh` of L at dt when the caller has it."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
-    aug = np.zeros((P, m + n, m + n))
-    aug[:, :m, :m], aug[:, :m, m:] = L["A"], L["Bu"]
-    E = _expm(aug * dt)
-    Phi, Gam = E[:, :m, :m], E[:, :m, m:]
+    Phi, Gam = zoh(L, dt) if hold is None else hold
     Ux, Uc = L["Ux"], L["Uc"]
     eye = np.broadcast_to(np.eye(n), (P, n, n))
     if form == "mpc":
@@ -389,7 +365,8 @@ def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
     (cached per derivation; MPC has no observer and MOM steps the same in both: their limits are shared)."""
     def make() -> dict[str, SampleLimit]:
         loop = _loop(d)
-        out = {form: sample_limit(d, form, observer, loop=loop) for form in FORMS
+        holds: dict = {}   # the zero-order holds the forms' searches share (sample_limit), dropped after them
+        out = {form: sample_limit(d, form, observer, loop=loop, holds=holds) for form in FORMS
                if form not in SHARED or observer == "explicit"}
         if observer != "explicit":
             shared = limits(d, "explicit")

@@ -63,12 +63,14 @@ _TRIG = {ca.OP_SIN: "trig_sin({0})", ca.OP_COS: "trig_cos({0})"}   # own_trig (d
 
 @dataclass(frozen=True)
 class Printed:
-    """A kernel's body: register count, statements, and operation count."""
+    """A kernel's body: register count, statements, and operation count; ``arrays``: the
+    local arrays the statements use besides the registers (C declarators, e.g. ``ts0[6]``)."""
 
     registers: int
     statements: tuple[str, ...]
     operations: int
     unused_inputs: tuple[str, ...]
+    arrays: tuple[str, ...] = ()
 
 
 def expected_literal(value: float, real: str) -> str:
@@ -199,6 +201,28 @@ def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], None], dict[int
     return entries, takes, used
 
 
+def trig_runs(indices: list[int], size: int) -> list[tuple[int, int]]:
+    """Runs (first entry, count) of an input port of ``size`` entries whose lanes cover
+    ``indices``, every count even (trig_sincos works in pairs of lanes: derive.codegen.trig):
+    pairs (i, i + 1) from each index not yet covered, (i - 1, i) for the port's last entry,
+    consecutive pairs merged. A port of one entry gives [(0, 2)]: the caller copies it into
+    both lanes of a local pair."""
+    if size == 1:
+        return [(0, 2)]
+    starts: list[int] = []
+    for i in sorted(indices):
+        if starts and i < starts[-1] + 2:
+            continue
+        starts.append(i if i + 1 < size else i - 1)
+    runs: list[tuple[int, int]] = []
+    for a in starts:
+        if runs and runs[-1][0] + runs[-1][1] == a:
+            runs[-1] = (runs[-1][0], runs[-1][1] + 2)
+        else:
+            runs.append((a, 2))
+    return runs
+
+
 def print_function(f: ca.Function, language: str, real: str = "double",
                    inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None,
                    own_trig: bool = False) -> Printed:
@@ -207,9 +231,11 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     Python: the same operations as fewer statements (:func:`_python_statements`).
 
     ``own_trig`` (C): sin and cos call the file's ``trig_sincos`` (derive.codegen.trig.c_helper)
-    instead of libm; those of an input entry are computed first (``trig_sincos``, both at once),
-    into two registers of their own, so that they overlap with the rest of the kernel, and the
-    entry's load is printed only when something else reads it."""
+    instead of libm. Those of input entries are computed first, all of a port's at once: one
+    ``trig_sincos(theta + 1, ts0, tc0, 6)`` per run of lanes (:func:`trig_runs`), straight from
+    the input array (no copy: a vector load of two scalar stores would stall), into the local
+    arrays ``ts<j>``, ``tc<j>`` (``Printed.arrays``), so that they overlap with the rest of the
+    kernel; the entry's load is printed only when something else reads it."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -218,19 +244,38 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     ops = 0
     read: set[int] = set()
     hoisted, takes, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, {}, set())
-    trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # (entry, OP_SIN / OP_COS) -> its register
-    for entry in hoisted:
-        for op in (ca.OP_SIN, ca.OP_COS):
-            trig_reg[entry, op] = f.sz_w() + len(trig_reg)
-        read.add(entry[0])
-        lines.append(f"trig_sincos({ins[entry[0]]}[{entry[1]}], &a{trig_reg[entry, ca.OP_SIN]}, "
-                     f"&a{trig_reg[entry, ca.OP_COS]});")
+    lane: dict[tuple[int, int], tuple[int, int]] = {}   # input entry -> (trig_sincos call, lane)
+    arrays: list[str] = []
+    calls = 0
+    taken = set(ins) | set(outs)
+    for port in dict.fromkeys(p for p, _ in hoisted):
+        indices = [i for p, i in hoisted if p == port]
+        size = f.nnz_in(port)
+        read.add(port)
+        for start, count in trig_runs(indices, size):
+            j, calls = calls, calls + 1
+            names = [f"{c}{j}" for c in ("ts", "tc", "tx")]
+            if taken & set(names):
+                raise DerivationError(f"kernel {f.name()}: a port is named like a sine array ({names})")
+            arrays += [f"{names[0]}[{count}]", f"{names[1]}[{count}]"]
+            if size == 1:   # a one-entry port: both lanes of a local pair
+                arrays.append(f"{names[2]}[2]")
+                lines.append(f"{names[2]}[0] = {ins[port]}[0];")
+                lines.append(f"{names[2]}[1] = {ins[port]}[0];")
+                source = names[2]
+            else:
+                source = f"{ins[port]} + {start}" if start else ins[port]
+            lines.append(f"trig_sincos({source}, {names[0]}, {names[1]}, {count});")
+            for i in indices:
+                if start <= i < start + count:
+                    lane.setdefault((port, i), (j, i - start))
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
         args = f.instruction_input(k)
         res = f.instruction_output(k)
         if k in takes:
-            lines.append(f"a{res[0]} = a{trig_reg[takes[k], op]};")
+            j, i = lane[takes[k]]
+            lines.append(f"a{res[0]} = t{'s' if op == ca.OP_SIN else 'c'}{j}[{i}];")
             ops += 1
         elif op == ca.OP_INPUT:
             if hoisted and k not in loads:
@@ -252,5 +297,5 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     if language != "c":
         lines = _python_statements(f, ins, outs)
     unused = tuple(name for i, name in enumerate(ins) if i not in read)
-    return Printed(registers=f.sz_w() + len(trig_reg), statements=tuple(lines), operations=ops,
-                   unused_inputs=unused)
+    return Printed(registers=f.sz_w(), statements=tuple(lines), operations=ops, unused_inputs=unused,
+                   arrays=tuple(arrays))

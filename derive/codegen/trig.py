@@ -5,8 +5,10 @@ they are libm calls (a third of the Panda's ``npid_step``: the call, and a
 result the rest of the step waits for). The C printer
 (:mod:`derive.codegen.printing`) calls instead a static ``trig_sincos`` (out
 of line: one copy per file) of the real type, defined by :func:`c_helper` at the top of each C file that
-needs it, and computes the sines and cosines of the kernel's input angles first
-so that the processor overlaps them with the rest.
+needs it, and computes the sines and cosines of the kernel's input angles first, all of
+them in one call, so that the processor overlaps them with the rest. The call works on
+pairs of lanes that the compiler evaluates as one two-lane vector (SSE2 for double at gcc
+-O2): the same operations per lane, so the bound below holds for every lane.
 
 Method (Cody and Waite's reduction with one constant; polynomials on the
 reduced interval; Muller, *Elementary Functions*, 3rd ed., ch. 11):
@@ -251,9 +253,21 @@ def k_max(x):
 
 def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")) -> tuple[str, ...]:
     """The C text of the file's own sine and cosine for ``real`` ("double" or "float"),
-    ``real_type`` the C name of the type (C99, <math.h>): ``static void trig_sincos(real x,
-    real *s, real *c)``, and the ``needed`` ones among its wrappers ``trig_sin``, ``trig_cos``
-    (only those the file calls: compilers warn of an unused static function)."""
+    ``real_type`` the C name of the type (C99, <math.h>): ``static void trig_sincos(const real
+    *x, real *s, real *c, int n)``, s[i] = sin x[i] and c[i] = cos x[i] for the n lanes
+    (n even, the arrays not overlapping), and the ``needed`` ones among its wrappers
+    ``trig_sin``, ``trig_cos`` of one value (only those the file calls: compilers warn of an
+    unused static function).
+
+    The lanes go in pairs: ``trig_poly`` evaluates the polynomials of lanes (i, i + 1) in a
+    loop of exactly two iterations over ``restrict`` arrays, which gcc -O2 turns into one
+    two-lane vector evaluation (SSE2 for double). Each lane is still the same IEEE operations
+    in the same order as the scalar method of the module doc (a vector instruction rounds each
+    lane as its scalar one does), so the proved bound holds lane by lane. When every |x[i]| <=
+    PIO4 (k = 0, r = x: the common case of a controller's joint angles) the polynomials run
+    straight on x; else each pair is reduced first (lane by lane, as in the module doc),
+    evaluated, and turned by its quadrant, |x| > XMAX from libm. One copy of the polynomials
+    per file (trig_poly): a small target's flash."""
     f = "f" if real == "float" else ""
     def lit(h: str) -> str:   # every value here is exact in the real type (a test checks the coefficients)
         return c_literal(float.fromhex(h), real)
@@ -267,43 +281,72 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         return text
 
     b = bound(real)
+    pio4, xmax = lit(PIO4_HEX[real]), lit(float(XMAX[real]).hex())
     head = (
         f"/* sin x and cos x (derive.codegen.trig): x = k pi/2 + r, |r| <= {float(R)}, polynomials in r;",
         f" * proved |error| <= {b.relative:.3g} |value| + {b.per_k:.3g} |k| + {b.fixed:.3g} (0 for k = 0),",
         " * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step",
         f" * needs extra precision that -ffast-math could remove. libm's sin{f} and cos{f} for |x| > {XMAX[real]}.",
-        " * One function for both (the polynomials are most of the code: one copy keeps a small",
-        " * target's flash); trig_sin and trig_cos call it. */",
-        f"static void trig_sincos({T} x, {T} *s, {T} *c)",
+        " * trig_sincos takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector",
+        " * evaluation where the compiler vectorises it, the same operations in the same order in each",
+        " * lane, so the bound holds for each. One copy of the polynomials (trig_poly): a small",
+        " * target's flash. */",
+        f"static void trig_poly(const {T} *restrict r, {T} *restrict s, {T} *restrict c, int n)",
         "{",
-        f"    {T} t, r = x, z, ps, pc;",
-        "    long k = 0;",
-        f"    if (!(fabs{f}(x) <= {lit(PIO4_HEX[real])})) {{   /* else k = 0, r = x: no reduction */",
-        f"        if (!(fabs{f}(x) <= {lit(float(XMAX[real]).hex())})) {{",
-        f"            *s = sin{f}(x);",
-        f"            *c = cos{f}(x);",
-        "            return;",
+        f"    {T} z;",
+        "    int i, j;",
+        "    for (i = 0; i < n; i += 2)",
+        "        for (j = i; j < i + 2; ++j) {   /* a pair of lanes */",
+        "            z = r[j] * r[j];",
+        f"            s[j] = r[j] + (r[j] * z) * ({horner(S)});",
+        f"            c[j] = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
         "        }",
-        f"        t = x * {lit(TWO_OVER_PI[real])};",
-        f"        k = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
-        f"        r = x - ({T})k * {lit(PIO2_HEX[real])};",
+        "}",
+        "",
+        f"static void trig_sincos(const {T} *restrict x, {T} *restrict s, {T} *restrict c, int n)",
+        "{",
+        f"    {T} r[2], t;",
+        "    long k[2];",
+        "    int i, j, far = 0;",
+        "    for (i = 0; i < n; ++i)",
+        f"        far |= !(fabs{f}(x[i]) <= {pio4});",
+        "    if (!far) {   /* every k = 0, r = x: no reduction */",
+        "        trig_poly(x, s, c, n);",
+        "        return;",
         "    }",
-        "    z = r * r;",
-        f"    ps = r + (r * z) * ({horner(S)});",
-        f"    pc = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
-        "    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
-        "        t = ps;",
-        "        ps = pc;",
-        "        pc = -t;",
+        "    for (i = 0; i < n; i += 2) {",
+        "        for (j = 0; j < 2; ++j) {",
+        "            r[j] = x[i + j];",
+        "            k[j] = 0;",
+        f"            if (!(fabs{f}(r[j]) <= {pio4})) {{",
+        f"                if (!(fabs{f}(r[j]) <= {xmax})) {{",
+        "                    r[j] = 0;   /* libm below */",
+        "                    continue;",
+        "                }",
+        f"                t = r[j] * {lit(TWO_OVER_PI[real])};",
+        f"                k[j] = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
+        f"                r[j] = x[i + j] - ({T})k[j] * {lit(PIO2_HEX[real])};",
+        "            }",
+        "        }",
+        "        trig_poly(r, s + i, c + i, 2);",
+        "        for (j = i; j < i + 2; ++j) {",
+        f"            if (!(fabs{f}(x[j]) <= {xmax})) {{",
+        f"                s[j] = sin{f}(x[j]);",
+        f"                c[j] = cos{f}(x[j]);",
+        "            }",
+        "            if (k[j - i] & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
+        "                t = s[j];",
+        "                s[j] = c[j];",
+        "                c[j] = -t;",
+        "            }",
+        "            if (k[j - i] & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
+        "                s[j] = -s[j];",
+        "                c[j] = -c[j];",
+        "            }",
+        "        }",
         "    }",
-        "    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
-        "        ps = -ps;",
-        "        pc = -pc;",
-        "    }",
-        "    *s = ps;",
-        "    *c = pc;",
         "}",
     )
     return head + tuple(line for name in ("sin", "cos") if name in needed for line in (
-        "", f"static {T} trig_{name}({T} x)", "{", f"    {T} s, c;", "    trig_sincos(x, &s, &c);",
-        f"    return {name[0]};", "}"))
+        "", f"static {T} trig_{name}({T} x)", "{", f"    {T} xs[2], s[2], c[2];", "    xs[0] = x;",
+        "    xs[1] = x;", "    trig_sincos(xs, s, c, 2);", f"    return {name[0]}[0];", "}"))

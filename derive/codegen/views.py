@@ -51,6 +51,7 @@ class KernelView:
     py_outputs: tuple[tuple[str, int], ...]
     registers: int
     c_body: tuple[str, ...]
+    c_locals: tuple[str, ...]    # the C body's locals: registers a0.., then its arrays (ts0[6], ...)
     py_body: tuple[str, ...]
     operations: int
     unused: tuple[str, ...]      # input ports the maths does not read
@@ -121,6 +122,7 @@ def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
                       py_args=tuple(p.name for p in spec.inputs),
                       py_outputs=tuple((p.name, p.size) for p in spec.outputs),
                       registers=c.registers, c_body=c.statements, py_body=py.statements,
+                      c_locals=tuple(f"a{r}" for r in range(c.registers)) + c.arrays,
                       operations=c.operations, unused=c.unused_inputs)
 
 

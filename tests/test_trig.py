@@ -28,19 +28,24 @@ static double where[2];
 
 static real last[3];   /* the last three arguments: the other lanes of each call */
 
-/* x in every lane of a call of six lanes with the last three arguments (so that a lane's
- * result is checked whichever way its neighbours go: reduced or not, libm or not) */
+/* x through trig_sincos, and in every lane of a trig_sincos_n call of six lanes with the last
+ * three arguments (so that a lane's result is checked whichever way its neighbours go: reduced
+ * or not, libm or not) */
 static void check(real x, double rel, double per_k, double fixed)
 {
-    real xs6[6], s[6], c[6];
+    real xs6[6], s[7], c[7];
     long double xs = (long double)x, ref[2], got[2], k, bound;
     int f, lane, j;
     ref[0] = sinl(xs); ref[1] = cosl(xs);
     k = floorl(fabsl(xs) * 0.63661977236758134308L * (1 + 1e-6L) + 0.5L + 1e-6L);
-    for (lane = 0; lane < 6; ++lane) {
-        for (j = 0; j < 6; ++j) xs6[j] = last[(j + lane) % 3];
-        xs6[lane] = x;
-        trig_sincos(xs6, s, c, 6);
+    for (lane = 0; lane < 7; ++lane) {
+        if (lane == 6) {
+            trig_sincos(x, &s[6], &c[6]);
+        } else {
+            for (j = 0; j < 6; ++j) xs6[j] = last[(j + lane) % 3];
+            xs6[lane] = x;
+            trig_sincos_n(xs6, s, c, 6);
+        }
         got[0] = s[lane]; got[1] = c[lane];
         for (f = 0; f < 2; ++f) {
             bound = rel * fabsl(ref[f]) + (k > 0 ? (1 + rel) * (k * per_k + fixed) : 0) + 4e-19L * fabsl(ref[f]);
@@ -150,7 +155,7 @@ def test_trig_compiled_within_proved_bound(real, tmp_path):
     reference, 64-bit significand: its own error is added to the bound)."""
     b = trig.bound(real)
     src = DRIVER.replace("NEXTAFTER", "nextafterf" if real == "float" else "nextafter").replace(
-        "REAL", real).replace("HELPER", "\n".join(trig.c_helper(real, "real", ())))
+        "REAL", real).replace("HELPER", "\n".join(trig.c_helper(real, "real", ("sincos", "sincos_n"))))
     (tmp_path / "trig.c").write_text(src)
     worst = []
     for cc, flags in BUILDS:
@@ -169,34 +174,34 @@ def test_trig_compiled_within_proved_bound(real, tmp_path):
 
 
 def test_printer_computes_the_trig_of_inputs_first_and_drops_dead_loads():
-    """own_trig: the sines and cosines of input entries become one trig_sincos call at the top
-    per run of lanes, straight from the input array into the arrays ts0, tc0 (declared in
-    Printed.arrays), the entry's load is printed only when something else reads it, and the sine
-    of a computed value calls the trig_sin wrapper; without own_trig, libm as before."""
+    """own_trig: the sines and cosines of a port's input entries become one trig_sincos_n call
+    at the top per run of lanes, straight from the input array into the arrays ts0, tc0
+    (declared in Printed.arrays); a port's lone angle one trig_sincos call into two registers;
+    the entry's load is printed only when something else reads it, and the sine of a computed
+    value calls the trig_sin wrapper; without own_trig, libm as before."""
     import casadi as ca
 
     from derive.codegen.printing import print_function
 
     x = ca.SX.sym("x", 3)
-    f = ca.Function("k", [x], [ca.vertcat(ca.sin(x[0]) * ca.cos(x[0]) + ca.cos(x[1]), ca.sin(x[0] + x[2]))],
-                    ["x"], ["y"])
+    q = ca.SX.sym("q", 2)
+    f = ca.Function("k", [x, q], [ca.vertcat(ca.sin(x[0]) * ca.cos(x[0]) + ca.cos(x[1]) + ca.cos(q[1]),
+                                             ca.sin(x[0] + x[2]))], ["x", "q"], ["y"])
     printed = print_function(f, "c", "double", own_trig=True)
     body = printed.statements
-    calls = [line for line in body if line.startswith("trig_sincos(")]
-    assert calls == ["trig_sincos(x, ts0, tc0, 2);"] and body[0] == calls[0]
+    calls = [line for line in body if line.startswith("trig_sincos")]
+    regs = f.sz_w()
+    assert calls == ["trig_sincos_n(x, ts0, tc0, 2);", f"trig_sincos(q[1], &a{regs}, &a{regs + 1});"]
+    assert body[:2] == tuple(calls) and printed.registers == regs + 2
     assert printed.arrays == ("ts0[2]", "tc0[2]")
     assert sum("= ts0[0];" in line for line in body) == 1 and sum("= tc0[0];" in line for line in body) == 1
     assert sum("= tc0[1];" in line for line in body) == 1 and not any("= ts0[1];" in line for line in body)
+    assert sum(f"= a{regs + 1};" in line for line in body) == 1   # cos q1
     assert sum("= x[0];" in line for line in body) == 1      # read by the sum x0 + x2
-    assert not any("= x[1];" in line for line in body)       # only its cosine is taken
+    assert not any("= x[1];" in line or "= q[1];" in line for line in body)   # only their cosines are taken
     assert any("trig_sin(" in line for line in body)
     plain = print_function(f, "c", "double").statements
     assert not any("trig_" in line for line in plain) and any("sin(" in line for line in plain)
-    # a one-entry port: copied into both lanes of a local pair
-    q = ca.SX.sym("q", 1)
-    one = print_function(ca.Function("k1", [q], [ca.sin(q)], ["q"], ["y"]), "c", "double", own_trig=True)
-    assert one.statements[:3] == ("tx0[0] = q[0];", "tx0[1] = q[0];", "trig_sincos(tx0, ts0, tc0, 2);")
-    assert one.arrays == ("ts0[2]", "tc0[2]", "tx0[2]")
 
 
 def test_trig_runs_cover_the_entries_in_pairs_within_the_port():
@@ -207,9 +212,10 @@ def test_trig_runs_cover_the_entries_in_pairs_within_the_port():
     assert trig_runs(list(range(7)), 7) == [(0, 6), (5, 2)]   # the last entry with its neighbour
     assert trig_runs([6], 7) == [(5, 2)]
     assert trig_runs([0, 3], 7) == [(0, 2), (3, 2)]
-    assert trig_runs([0], 1) == [(0, 2)]
     for size in range(2, 9):
         for mask in range(1, 2 ** size):
+            if bin(mask).count('1') < 2:
+                continue   # a lone angle goes to trig_sincos
             wanted = [i for i in range(size) if mask >> i & 1]
             runs = trig_runs(wanted, size)
             assert all(n % 2 == 0 and 0 <= a and a + n <= size for a, n in runs)

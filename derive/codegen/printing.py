@@ -202,13 +202,10 @@ def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], None], dict[int
 
 
 def trig_runs(indices: list[int], size: int) -> list[tuple[int, int]]:
-    """Runs (first entry, count) of an input port of ``size`` entries whose lanes cover
-    ``indices``, every count even (trig_sincos works in pairs of lanes: derive.codegen.trig):
-    pairs (i, i + 1) from each index not yet covered, (i - 1, i) for the port's last entry,
-    consecutive pairs merged. A port of one entry gives [(0, 2)]: the caller copies it into
-    both lanes of a local pair."""
-    if size == 1:
-        return [(0, 2)]
+    """Runs (first entry, count) of an input port of ``size`` entries (at least two) whose lanes
+    cover ``indices``, every count even (trig_sincos_n works in pairs of lanes:
+    derive.codegen.trig): pairs (i, i + 1) from each index not yet covered, (i - 1, i) for the
+    port's last entry, consecutive pairs merged."""
     starts: list[int] = []
     for i in sorted(indices):
         if starts and i < starts[-1] + 2:
@@ -230,12 +227,13 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     name (C arrays or Python sequences). C: one statement per instruction, registers ``a0..``;
     Python: the same operations as fewer statements (:func:`_python_statements`).
 
-    ``own_trig`` (C): sin and cos call the file's ``trig_sincos`` (derive.codegen.trig.c_helper)
-    instead of libm. Those of input entries are computed first, all of a port's at once: one
-    ``trig_sincos(theta + 1, ts0, tc0, 6)`` per run of lanes (:func:`trig_runs`), straight from
-    the input array (no copy: a vector load of two scalar stores would stall), into the local
-    arrays ``ts<j>``, ``tc<j>`` (``Printed.arrays``), so that they overlap with the rest of the
-    kernel; the entry's load is printed only when something else reads it."""
+    ``own_trig`` (C): sin and cos call the file's own (derive.codegen.trig.c_helper) instead of
+    libm. Those of input entries are computed first, so that they overlap with the rest of the
+    kernel: a port's several angles at once, one ``trig_sincos_n(theta + 1, ts0, tc0, 6)`` per
+    run of lanes (:func:`trig_runs`), straight from the input array (no copy: a vector load of
+    two scalar stores would stall), into the local arrays ``ts<j>``, ``tc<j>``
+    (``Printed.arrays``); a port's lone angle by ``trig_sincos`` (both at once) into two
+    registers of their own. The entry's load is printed only when something else reads it."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -244,28 +242,28 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     ops = 0
     read: set[int] = set()
     hoisted, takes, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, {}, set())
-    lane: dict[tuple[int, int], tuple[int, int]] = {}   # input entry -> (trig_sincos call, lane)
+    lane: dict[tuple[int, int], tuple[int, int]] = {}   # input entry -> (trig_sincos_n call, lane)
+    trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # a lone angle: (entry, OP_SIN / OP_COS) -> register
     arrays: list[str] = []
-    calls = 0
     taken = set(ins) | set(outs)
     for port in dict.fromkeys(p for p, _ in hoisted):
         indices = [i for p, i in hoisted if p == port]
-        size = f.nnz_in(port)
         read.add(port)
-        for start, count in trig_runs(indices, size):
-            j, calls = calls, calls + 1
-            names = [f"{c}{j}" for c in ("ts", "tc", "tx")]
+        if len(indices) == 1:   # one angle: trig_sincos, into two registers of their own
+            entry = (port, indices[0])
+            for op in (ca.OP_SIN, ca.OP_COS):
+                trig_reg[entry, op] = f.sz_w() + len(trig_reg)
+            lines.append(f"trig_sincos({ins[port]}[{indices[0]}], &a{trig_reg[entry, ca.OP_SIN]}, "
+                         f"&a{trig_reg[entry, ca.OP_COS]});")
+            continue
+        for start, count in trig_runs(indices, f.nnz_in(port)):
+            j = len(arrays) // 2
+            names = (f"ts{j}", f"tc{j}")
             if taken & set(names):
                 raise DerivationError(f"kernel {f.name()}: a port is named like a sine array ({names})")
             arrays += [f"{names[0]}[{count}]", f"{names[1]}[{count}]"]
-            if size == 1:   # a one-entry port: both lanes of a local pair
-                arrays.append(f"{names[2]}[2]")
-                lines.append(f"{names[2]}[0] = {ins[port]}[0];")
-                lines.append(f"{names[2]}[1] = {ins[port]}[0];")
-                source = names[2]
-            else:
-                source = f"{ins[port]} + {start}" if start else ins[port]
-            lines.append(f"trig_sincos({source}, {names[0]}, {names[1]}, {count});")
+            source = f"{ins[port]} + {start}" if start else ins[port]
+            lines.append(f"trig_sincos_n({source}, {names[0]}, {names[1]}, {count});")
             for i in indices:
                 if start <= i < start + count:
                     lane.setdefault((port, i), (j, i - start))
@@ -273,9 +271,12 @@ def print_function(f: ca.Function, language: str, real: str = "double",
         op = f.instruction_id(k)
         args = f.instruction_input(k)
         res = f.instruction_output(k)
-        if k in takes:
+        if k in takes and takes[k] in lane:
             j, i = lane[takes[k]]
             lines.append(f"a{res[0]} = t{'s' if op == ca.OP_SIN else 'c'}{j}[{i}];")
+            ops += 1
+        elif k in takes:
+            lines.append(f"a{res[0]} = a{trig_reg[takes[k], op]};")
             ops += 1
         elif op == ca.OP_INPUT:
             if hoisted and k not in loads:
@@ -297,5 +298,5 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     if language != "c":
         lines = _python_statements(f, ins, outs)
     unused = tuple(name for i, name in enumerate(ins) if i not in read)
-    return Printed(registers=f.sz_w(), statements=tuple(lines), operations=ops, unused_inputs=unused,
-                   arrays=tuple(arrays))
+    return Printed(registers=f.sz_w() + len(trig_reg), statements=tuple(lines), operations=ops,
+                   unused_inputs=unused, arrays=tuple(arrays))

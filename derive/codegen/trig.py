@@ -253,21 +253,24 @@ def k_max(x):
 
 def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")) -> tuple[str, ...]:
     """The C text of the file's own sine and cosine for ``real`` ("double" or "float"),
-    ``real_type`` the C name of the type (C99, <math.h>): ``static void trig_sincos(const real
-    *x, real *s, real *c, int n)``, s[i] = sin x[i] and c[i] = cos x[i] for the n lanes
-    (n even, the arrays not overlapping), and the ``needed`` ones among its wrappers
-    ``trig_sin``, ``trig_cos`` of one value (only those the file calls: compilers warn of an
-    unused static function).
+    ``real_type`` the C name of the type (C99, <math.h>), the ``needed`` ones of (only those the
+    file calls: compilers warn of an unused static function):
 
-    The lanes go in pairs: ``trig_poly`` evaluates the polynomials of lanes (i, i + 1) in a
-    loop of exactly two iterations over ``restrict`` arrays, which gcc -O2 turns into one
-    two-lane vector evaluation (SSE2 for double). Each lane is still the same IEEE operations
-    in the same order as the scalar method of the module doc (a vector instruction rounds each
-    lane as its scalar one does), so the proved bound holds lane by lane. When every |x[i]| <=
-    PIO4 (k = 0, r = x: the common case of a controller's joint angles) the polynomials run
-    straight on x; else each pair is reduced first (lane by lane, as in the module doc),
-    evaluated, and turned by its quadrant, |x| > XMAX from libm. One copy of the polynomials
-    per file (trig_poly): a small target's flash."""
+    * ``"sincos"``: ``static void trig_sincos(real x, real *s, real *c)``, one angle;
+    * ``"sincos_n"``: ``static void trig_sincos_n(const real *x, real *s, real *c, int n)``,
+      s[i] = sin x[i] and c[i] = cos x[i] for n lanes (n even, the arrays not overlapping);
+    * ``"sin"``, ``"cos"``: ``trig_sin(x)``, ``trig_cos(x)``, wrappers of trig_sincos.
+
+    trig_sincos_n goes in pairs of lanes: ``trig_poly`` evaluates the polynomials of lanes
+    (i, i + 1) in a loop of exactly two iterations over ``restrict`` arrays, which gcc -O2 turns
+    into one two-lane vector evaluation (SSE2 for double). Each lane is still the same IEEE
+    operations in the same order as trig_sincos (a vector instruction rounds each lane as its
+    scalar one does), so the proved bound holds lane by lane. When every |x[i]| <= PIO4 (k = 0,
+    r = x: the common case of a controller's joint angles) the polynomials run straight on x;
+    else each pair is reduced first (lane by lane, as trig_sincos does), evaluated, and turned
+    by its quadrant, |x| > XMAX from libm. Each function holds one copy of the polynomials; the
+    printer calls trig_sincos only for a lone angle (a one-lane pair would cost a scalar
+    target a second polynomial), so a file holds both only where its kernels need both."""
     f = "f" if real == "float" else ""
     def lit(h: str) -> str:   # every value here is exact in the real type (a test checks the coefficients)
         return c_literal(float.fromhex(h), real)
@@ -282,15 +285,56 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
 
     b = bound(real)
     pio4, xmax = lit(PIO4_HEX[real]), lit(float(XMAX[real]).hex())
+    one = "sincos" in needed or "sin" in needed or "cos" in needed
     head = (
         f"/* sin x and cos x (derive.codegen.trig): x = k pi/2 + r, |r| <= {float(R)}, polynomials in r;",
         f" * proved |error| <= {b.relative:.3g} |value| + {b.per_k:.3g} |k| + {b.fixed:.3g} (0 for k = 0),",
         " * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step",
         f" * needs extra precision that -ffast-math could remove. libm's sin{f} and cos{f} for |x| > {XMAX[real]}.",
-        " * trig_sincos takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector",
+    ) + ((
+        " * One function for both (the polynomials are most of the code: one copy keeps a small",
+        " * target's flash); trig_sin and trig_cos call it. */",
+    ) if one else (
+        " * trig_sincos_n takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector",
         " * evaluation where the compiler vectorises it, the same operations in the same order in each",
         " * lane, so the bound holds for each. One copy of the polynomials (trig_poly): a small",
         " * target's flash. */",
+    ))
+    scalar = (
+        f"static void trig_sincos({T} x, {T} *s, {T} *c)",
+        "{",
+        f"    {T} t, r = x, z, ps, pc;",
+        "    long k = 0;",
+        f"    if (!(fabs{f}(x) <= {pio4})) {{   /* else k = 0, r = x: no reduction */",
+        f"        if (!(fabs{f}(x) <= {xmax})) {{",
+        f"            *s = sin{f}(x);",
+        f"            *c = cos{f}(x);",
+        "            return;",
+        "        }",
+        f"        t = x * {lit(TWO_OVER_PI[real])};",
+        f"        k = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
+        f"        r = x - ({T})k * {lit(PIO2_HEX[real])};",
+        "    }",
+        "    z = r * r;",
+        f"    ps = r + (r * z) * ({horner(S)});",
+        f"    pc = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
+        "    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
+        "        t = ps;",
+        "        ps = pc;",
+        "        pc = -t;",
+        "    }",
+        "    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
+        "        ps = -ps;",
+        "        pc = -pc;",
+        "    }",
+        "    *s = ps;",
+        "    *c = pc;",
+        "}",
+    )
+    pairs = (
+        ("/* trig_sincos_n: the same method for n lanes (n even) in pairs, trig_poly's loop of two lanes one",
+         " * vector evaluation where the compiler vectorises it (the same operations in the same order",
+         " * in each lane, so the bound holds for each). */") if one else ()) + (
         f"static void trig_poly(const {T} *restrict r, {T} *restrict s, {T} *restrict c, int n)",
         "{",
         f"    {T} z;",
@@ -303,7 +347,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         "        }",
         "}",
         "",
-        f"static void trig_sincos(const {T} *restrict x, {T} *restrict s, {T} *restrict c, int n)",
+        f"static void trig_sincos_n(const {T} *restrict x, {T} *restrict s, {T} *restrict c, int n)",
         "{",
         f"    {T} r[2], t;",
         "    long k[2];",
@@ -347,6 +391,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         "    }",
         "}",
     )
-    return head + tuple(line for name in ("sin", "cos") if name in needed for line in (
-        "", f"static {T} trig_{name}({T} x)", "{", f"    {T} xs[2], s[2], c[2];", "    xs[0] = x;",
-        "    xs[1] = x;", "    trig_sincos(xs, s, c, 2);", f"    return {name[0]}[0];", "}"))
+    text = head + (scalar if one else ()) + ((("",) if one else ()) + pairs if "sincos_n" in needed else ())
+    return text + tuple(line for name in ("sin", "cos") if name in needed for line in (
+        "", f"static {T} trig_{name}({T} x)", "{", f"    {T} s, c;", "    trig_sincos(x, &s, &c);",
+        f"    return {name[0]};", "}"))

@@ -88,7 +88,7 @@ class ArmView:
     trig_helper: tuple[str, ...] = ()           # the C file's own sin and cos (derive.codegen.trig), when used
 
 
-_TRIG_CALL = re.compile(r"\btrig_(sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
+_TRIG_CALL = re.compile(r"\btrig_(sincos_n|sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
 
 
 def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[str, ...]:
@@ -97,7 +97,7 @@ def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[
     calls = {m for k in kernels for line in k.c_body for m in _TRIG_CALL.findall(line)}
     if not calls:
         return ()
-    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sin", "cos") if f in calls))
+    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sincos", "sincos_n", "sin", "cos") if f in calls))
 
 
 def mask_type(n: int, source: str = "") -> str:

@@ -9,76 +9,48 @@
  * proved |error| <= 2.91e-16 |value| + 2.36e-16 |k| + 8.88e-17 (0 for k = 0),
  * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step
  * needs extra precision that -ffast-math could remove. libm's sin and cos for |x| > 1048576.
- * trig_sincos takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector
- * evaluation where the compiler vectorises it, the same operations in the same order in each
- * lane, so the bound holds for each. One copy of the polynomials (trig_poly): a small
- * target's flash. */
-static void trig_poly(const glasgow_2link_real *restrict r, glasgow_2link_real *restrict s, glasgow_2link_real *restrict c, int n)
+ * One function for both (the polynomials are most of the code: one copy keeps a small
+ * target's flash); trig_sin and trig_cos call it. */
+static void trig_sincos(glasgow_2link_real x, glasgow_2link_real *s, glasgow_2link_real *c)
 {
-    glasgow_2link_real z;
-    int i, j;
-    for (i = 0; i < n; i += 2)
-        for (j = i; j < i + 2; ++j) {   /* a pair of lanes */
-            z = r[j] * r[j];
-            s[j] = r[j] + (r[j] * z) * (-0.1666666666666662 + z * (0.008333333333319586 + z * (-0.00019841269827569535 + z * (2.755731292000414e-06 + z * (-2.5050637661375697e-08 + z * (1.588982892253278e-10))))));
-            c[j] = (1.0 - 0.5 * z) + (z * z) * (0.04166666666666657 + z * (-0.0013888888888869137 + z * (2.480158728645552e-05 + z * (-2.7557313497417e-07 + z * (2.08756092125942e-09 + z * (-1.1353835917110245e-11))))));
+    glasgow_2link_real t, r = x, z, ps, pc;
+    long k = 0;
+    if (!(fabs(x) <= 0.7853981633974483)) {   /* else k = 0, r = x: no reduction */
+        if (!(fabs(x) <= 1048576.0)) {
+            *s = sin(x);
+            *c = cos(x);
+            return;
         }
-}
-
-static void trig_sincos(const glasgow_2link_real *restrict x, glasgow_2link_real *restrict s, glasgow_2link_real *restrict c, int n)
-{
-    glasgow_2link_real r[2], t;
-    long k[2];
-    int i, j, far = 0;
-    for (i = 0; i < n; ++i)
-        far |= !(fabs(x[i]) <= 0.7853981633974483);
-    if (!far) {   /* every k = 0, r = x: no reduction */
-        trig_poly(x, s, c, n);
-        return;
+        t = x * 0.6366197723675814;
+        k = (long)(t + copysign(0.5, t));
+        r = x - (glasgow_2link_real)k * 1.5707963267948966;
     }
-    for (i = 0; i < n; i += 2) {
-        for (j = 0; j < 2; ++j) {
-            r[j] = x[i + j];
-            k[j] = 0;
-            if (!(fabs(r[j]) <= 0.7853981633974483)) {
-                if (!(fabs(r[j]) <= 1048576.0)) {
-                    r[j] = 0;   /* libm below */
-                    continue;
-                }
-                t = r[j] * 0.6366197723675814;
-                k[j] = (long)(t + copysign(0.5, t));
-                r[j] = x[i + j] - (glasgow_2link_real)k[j] * 1.5707963267948966;
-            }
-        }
-        trig_poly(r, s + i, c + i, 2);
-        for (j = i; j < i + 2; ++j) {
-            if (!(fabs(x[j]) <= 1048576.0)) {
-                s[j] = sin(x[j]);
-                c[j] = cos(x[j]);
-            }
-            if (k[j - i] & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */
-                t = s[j];
-                s[j] = c[j];
-                c[j] = -t;
-            }
-            if (k[j - i] & 2) {   /* x = r + pi (mod 2 pi): both change sign */
-                s[j] = -s[j];
-                c[j] = -c[j];
-            }
-        }
+    z = r * r;
+    ps = r + (r * z) * (-0.1666666666666662 + z * (0.008333333333319586 + z * (-0.00019841269827569535 + z * (2.755731292000414e-06 + z * (-2.5050637661375697e-08 + z * (1.588982892253278e-10))))));
+    pc = (1.0 - 0.5 * z) + (z * z) * (0.04166666666666657 + z * (-0.0013888888888869137 + z * (2.480158728645552e-05 + z * (-2.7557313497417e-07 + z * (2.08756092125942e-09 + z * (-1.1353835917110245e-11))))));
+    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */
+        t = ps;
+        ps = pc;
+        pc = -t;
     }
+    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */
+        ps = -ps;
+        pc = -pc;
+    }
+    *s = ps;
+    *c = pc;
 }
 
 /* PID gains of the nonlinear PID predictive controller (eq. 35-37); 15 operations. */
 void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link_real gain_p[4], glasgow_2link_real gain_d[4], glasgow_2link_real gain_i[4])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8;
+    trig_sincos(theta[1], &a7, &a8);
     a0 = 44.34782608695652;
     a1 = 70.95652173913044;
     a2 = 0.17929666666666666;
     a3 = 0.0810084;
-    a4 = tc0[1];
+    a4 = a8;
     a3 = a3 * a4;
     a2 = a2 + a3;
     a3 = a1 * a2;
@@ -120,8 +92,8 @@ void glasgow_2link_kernel_gains(const glasgow_2link_real theta[2], glasgow_2link
 /* Nonlinear predictive control law u* (eq. 15); 44 operations. */
 void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], glasgow_2link_real u[2])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15;
+    trig_sincos(theta[1], &a14, &a15);
     a0 = 14.782608695652174;
     a1 = 0.38;
     a2 = -0.10659;
@@ -131,7 +103,7 @@ void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2
     a5 = a5 * a5;
     a2 = a2 * a5;
     a5 = theta[1];
-    a6 = ts0[1];
+    a6 = a14;
     a2 = a2 * a6;
     a7 = 0.10659;
     a8 = ddyd[0];
@@ -157,7 +129,7 @@ void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2
     a10 = a10 * a13;
     a9 = a9 + a10;
     a10 = a7 * a9;
-    a5 = tc0[1];
+    a5 = a15;
     a10 = a10 * a5;
     a2 = a2 + a10;
     a2 = a1 * a2;
@@ -194,8 +166,8 @@ void glasgow_2link_kernel_mpc(const glasgow_2link_real theta[2], const glasgow_2
 /* Nonlinear PID predictive control law (eq. 34-38) and its integrator step; 62 operations. */
 void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real int_e[2], const glasgow_2link_real dt[1], glasgow_2link_real u[2], glasgow_2link_real int_next[2])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22;
+    trig_sincos(theta[1], &a21, &a22);
     a0 = 14.782608695652174;
     a1 = dyd[0];
     a2 = dtheta[0];
@@ -218,7 +190,7 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
     a12 = a12 * a12;
     a10 = a10 * a12;
     a12 = theta[1];
-    a13 = ts0[1];
+    a13 = a21;
     a10 = a10 * a13;
     a14 = 0.10659;
     a15 = ddyd[0];
@@ -237,7 +209,7 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
     a20 = a6 * a19;
     a16 = a16 + a20;
     a20 = a14 * a16;
-    a12 = tc0[1];
+    a12 = a22;
     a20 = a20 * a12;
     a10 = a10 + a20;
     a10 = a9 * a10;
@@ -292,8 +264,8 @@ void glasgow_2link_kernel_npid(const glasgow_2link_real theta[2], const glasgow_
 /* Composite law u = u* - dhat, dhat = B^-1 (z + W theta') (eq. 22, 27), the law's acceleration a for the observer step and the sines and cosines J(theta) needs; 54 operations. */
 void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real z[2], glasgow_2link_real u[2], glasgow_2link_real a[2], glasgow_2link_real trig[1])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18;
+    trig_sincos(theta[1], &a17, &a18);
     a0 = -14.782608695652174;
     a1 = dtheta[0];
     a2 = z[0];
@@ -307,7 +279,7 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     a6 = a6 * a6;
     a4 = a4 * a6;
     a6 = theta[1];
-    a7 = ts0[1];
+    a7 = a17;
     a4 = a4 * a7;
     a8 = 0.10659;
     a9 = ddyd[0];
@@ -333,7 +305,7 @@ void glasgow_2link_kernel_dobc(const glasgow_2link_real theta[2], const glasgow_
     a14 = a14 * a16;
     a11 = a11 + a14;
     a16 = a8 * a11;
-    a6 = tc0[1];
+    a6 = a18;
     a16 = a16 * a6;
     a4 = a4 + a16;
     a4 = a3 * a4;
@@ -502,8 +474,8 @@ void glasgow_2link_kernel_dhat(const glasgow_2link_real dtheta[2], const glasgow
 /* Composite law u = u* - dhat with the generalized-momentum observer's dhat = B^-1 r, dhat, and the observer's rate m' at that u; 70 operations. */
 void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real yd[2], const glasgow_2link_real dyd[2], const glasgow_2link_real ddyd[2], const glasgow_2link_real m[2], glasgow_2link_real u[2], glasgow_2link_real dhat[2], glasgow_2link_real m_rate[2])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+    trig_sincos(theta[1], &a22, &a23);
     a0 = -739.1304347826087;
     a1 = 0.14748053333333333;
     a2 = dtheta[0];
@@ -518,7 +490,7 @@ void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2
     a8 = 0.0405042;
     a9 = a8 * a2;
     a10 = theta[1];
-    a11 = tc0[1];
+    a11 = a23;
     a9 = a9 * a11;
     a3 = a3 + a9;
     a8 = a8 * a6;
@@ -530,7 +502,7 @@ void glasgow_2link_kernel_mom(const glasgow_2link_real theta[2], const glasgow_2
     a13 = -0.10659;
     a14 = a6 * a6;
     a13 = a13 * a14;
-    a14 = ts0[1];
+    a14 = a22;
     a13 = a13 * a14;
     a15 = 0.10659;
     a16 = ddyd[0];
@@ -647,8 +619,8 @@ void glasgow_2link_kernel_mom_next(const glasgow_2link_real m[2], const glasgow_
 /* Momentum observer state at the first sample: the generalized momentum J theta'; 12 operations. */
 void glasgow_2link_kernel_mom_init(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real m0[2])
 {
-    glasgow_2link_real a0, a1, a2, a3, a4, a5, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    glasgow_2link_real a0, a1, a2, a3, a4, a5, a6, a7;
+    trig_sincos(theta[1], &a6, &a7);
     a0 = 0.14748053333333333;
     a1 = dtheta[0];
     a0 = a0 * a1;
@@ -659,7 +631,7 @@ void glasgow_2link_kernel_mom_init(const glasgow_2link_real theta[2], const glas
     a0 = a0 + a2;
     a4 = 0.0405042;
     a1 = a4 * a1;
-    a5 = tc0[1];
+    a5 = a7;
     a1 = a1 * a5;
     a0 = a0 + a1;
     a4 = a4 * a3;

@@ -15,74 +15,46 @@ typedef glasgow_2link_real real;
  * proved |error| <= 2.91e-16 |value| + 2.36e-16 |k| + 8.88e-17 (0 for k = 0),
  * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step
  * needs extra precision that -ffast-math could remove. libm's sin and cos for |x| > 1048576.
- * trig_sincos takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector
- * evaluation where the compiler vectorises it, the same operations in the same order in each
- * lane, so the bound holds for each. One copy of the polynomials (trig_poly): a small
- * target's flash. */
-static void trig_poly(const glasgow_2link_real *restrict r, glasgow_2link_real *restrict s, glasgow_2link_real *restrict c, int n)
+ * One function for both (the polynomials are most of the code: one copy keeps a small
+ * target's flash); trig_sin and trig_cos call it. */
+static void trig_sincos(glasgow_2link_real x, glasgow_2link_real *s, glasgow_2link_real *c)
 {
-    glasgow_2link_real z;
-    int i, j;
-    for (i = 0; i < n; i += 2)
-        for (j = i; j < i + 2; ++j) {   /* a pair of lanes */
-            z = r[j] * r[j];
-            s[j] = r[j] + (r[j] * z) * (-0.1666666666666662 + z * (0.008333333333319586 + z * (-0.00019841269827569535 + z * (2.755731292000414e-06 + z * (-2.5050637661375697e-08 + z * (1.588982892253278e-10))))));
-            c[j] = (1.0 - 0.5 * z) + (z * z) * (0.04166666666666657 + z * (-0.0013888888888869137 + z * (2.480158728645552e-05 + z * (-2.7557313497417e-07 + z * (2.08756092125942e-09 + z * (-1.1353835917110245e-11))))));
+    glasgow_2link_real t, r = x, z, ps, pc;
+    long k = 0;
+    if (!(fabs(x) <= 0.7853981633974483)) {   /* else k = 0, r = x: no reduction */
+        if (!(fabs(x) <= 1048576.0)) {
+            *s = sin(x);
+            *c = cos(x);
+            return;
         }
-}
-
-static void trig_sincos(const glasgow_2link_real *restrict x, glasgow_2link_real *restrict s, glasgow_2link_real *restrict c, int n)
-{
-    glasgow_2link_real r[2], t;
-    long k[2];
-    int i, j, far = 0;
-    for (i = 0; i < n; ++i)
-        far |= !(fabs(x[i]) <= 0.7853981633974483);
-    if (!far) {   /* every k = 0, r = x: no reduction */
-        trig_poly(x, s, c, n);
-        return;
+        t = x * 0.6366197723675814;
+        k = (long)(t + copysign(0.5, t));
+        r = x - (glasgow_2link_real)k * 1.5707963267948966;
     }
-    for (i = 0; i < n; i += 2) {
-        for (j = 0; j < 2; ++j) {
-            r[j] = x[i + j];
-            k[j] = 0;
-            if (!(fabs(r[j]) <= 0.7853981633974483)) {
-                if (!(fabs(r[j]) <= 1048576.0)) {
-                    r[j] = 0;   /* libm below */
-                    continue;
-                }
-                t = r[j] * 0.6366197723675814;
-                k[j] = (long)(t + copysign(0.5, t));
-                r[j] = x[i + j] - (glasgow_2link_real)k[j] * 1.5707963267948966;
-            }
-        }
-        trig_poly(r, s + i, c + i, 2);
-        for (j = i; j < i + 2; ++j) {
-            if (!(fabs(x[j]) <= 1048576.0)) {
-                s[j] = sin(x[j]);
-                c[j] = cos(x[j]);
-            }
-            if (k[j - i] & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */
-                t = s[j];
-                s[j] = c[j];
-                c[j] = -t;
-            }
-            if (k[j - i] & 2) {   /* x = r + pi (mod 2 pi): both change sign */
-                s[j] = -s[j];
-                c[j] = -c[j];
-            }
-        }
+    z = r * r;
+    ps = r + (r * z) * (-0.1666666666666662 + z * (0.008333333333319586 + z * (-0.00019841269827569535 + z * (2.755731292000414e-06 + z * (-2.5050637661375697e-08 + z * (1.588982892253278e-10))))));
+    pc = (1.0 - 0.5 * z) + (z * z) * (0.04166666666666657 + z * (-0.0013888888888869137 + z * (2.480158728645552e-05 + z * (-2.7557313497417e-07 + z * (2.08756092125942e-09 + z * (-1.1353835917110245e-11))))));
+    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */
+        t = ps;
+        ps = pc;
+        pc = -t;
     }
+    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */
+        ps = -ps;
+        pc = -pc;
+    }
+    *s = ps;
+    *c = pc;
 }
 
 /* Inertia matrix J(theta) (eq. 12, a6); 5 operations. */
 static void glasgow_2link_plant_kernel_mass_matrix(const glasgow_2link_real theta[2], glasgow_2link_real J[4])
 {
-    real a0, a1, a2, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    real a0, a1, a2, a3, a4;
+    trig_sincos(theta[1], &a3, &a4);
     a0 = 0.17929666666666666;
     a1 = 0.0810084;
-    a2 = tc0[1];
+    a2 = a4;
     a1 = a1 * a2;
     a0 = a0 + a1;
     J[0] = a0;
@@ -98,8 +70,8 @@ static void glasgow_2link_plant_kernel_mass_matrix(const glasgow_2link_real thet
 /* G(theta, theta') of J theta'' + G = B (u + d) (eq. 12); 13 operations. */
 static void glasgow_2link_plant_kernel_bias(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], glasgow_2link_real G[2])
 {
-    real a0, a1, a2, a3, a4, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    real a0, a1, a2, a3, a4, a5, a6;
+    trig_sincos(theta[1], &a5, &a6);
     a0 = 0.019617647058823528;
     a1 = dtheta[0];
     a0 = a0 * a1;
@@ -108,7 +80,7 @@ static void glasgow_2link_plant_kernel_bias(const glasgow_2link_real theta[2], c
     a4 = a1 + a3;
     a4 = a4 * a4;
     a2 = a2 * a4;
-    a4 = ts0[1];
+    a4 = a5;
     a2 = a2 * a4;
     a0 = a0 + a2;
     a2 = 0.0405042;
@@ -149,12 +121,12 @@ static void glasgow_2link_plant_kernel_input_matrix(glasgow_2link_real B[4])
 /* Forward dynamics: J theta'' = B (u + d) - G solved numerically (eq. 12); 38 operations. */
 static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real theta[2], const glasgow_2link_real dtheta[2], const glasgow_2link_real u[2], const glasgow_2link_real d[2], glasgow_2link_real ddtheta[2])
 {
-    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, ts0[2], tc0[2];
-    trig_sincos(theta, ts0, tc0, 2);
+    real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11;
+    trig_sincos(theta[1], &a10, &a11);
     a0 = 0.03181613333333334;
     a1 = 0.17929666666666666;
     a2 = 0.0810084;
-    a4 = tc0[1];
+    a4 = a11;
     a2 = a2 * a4;
     a1 = a1 + a2;
     a2 = a0 * a1;
@@ -177,7 +149,7 @@ static void glasgow_2link_plant_kernel_forward_dynamics(const glasgow_2link_real
     a8 = -0.0405042;
     a9 = a7 * a7;
     a8 = a8 * a9;
-    a3 = ts0[1];
+    a3 = a10;
     a8 = a8 * a3;
     a6 = a6 + a8;
     a9 = dtheta[1];

@@ -5,10 +5,10 @@ they are libm calls (a third of the Panda's ``npid_step``: the call, and a
 result the rest of the step waits for). The C printer
 (:mod:`derive.codegen.printing`) calls instead a static ``trig_sincos`` (out
 of line: one copy per file) of the real type, defined by :func:`c_helper` at the top of each C file that
-needs it, and computes the sines and cosines of the kernel's input angles first, all of
-them in one call, so that the processor overlaps them with the rest. The call works on
-pairs of lanes that the compiler evaluates as one two-lane vector (SSE2 for double at gcc
--O2): the same operations per lane, so the bound below holds for every lane.
+needs it, and computes the sines and cosines of the kernel's input angles first so that the
+processor overlaps them with the rest: a port's several angles in one ``trig_sincos_n``
+call, which works on pairs of lanes that the compiler evaluates as one two-lane vector (SSE2
+for double at gcc -O2), the same operations per lane, so the bound below holds for every lane.
 
 Method (Cody and Waite's reduction with one constant; polynomials on the
 reduced interval; Muller, *Elementary Functions*, 3rd ed., ch. 11):
@@ -283,6 +283,17 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
             text = f"{lit(c)} + z * ({text})"
         return text
 
+    def reduction(pad: str, x: str, k: str, r: str) -> tuple[str, ...]:   # x = k pi/2 + r
+        return (f"{pad}t = {x} * {lit(TWO_OVER_PI[real])};",
+                f"{pad}{k} = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
+                f"{pad}{r} = {x} - ({T}){k} * {lit(PIO2_HEX[real])};")
+
+    def quadrant(pad: str, k: str, s: str, c: str) -> tuple[str, ...]:   # (sin r, cos r) -> (sin x, cos x)
+        return (f"{pad}if ({k} & 1) {{   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
+                f"{pad}    t = {s};", f"{pad}    {s} = {c};", f"{pad}    {c} = -t;", f"{pad}}}",
+                f"{pad}if ({k} & 2) {{   /* x = r + pi (mod 2 pi): both change sign */",
+                f"{pad}    {s} = -{s};", f"{pad}    {c} = -{c};", f"{pad}}}")
+
     b = bound(real)
     pio4, xmax = lit(PIO4_HEX[real]), lit(float(XMAX[real]).hex())
     one = "sincos" in needed or "sin" in needed or "cos" in needed
@@ -311,22 +322,12 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         f"            *c = cos{f}(x);",
         "            return;",
         "        }",
-        f"        t = x * {lit(TWO_OVER_PI[real])};",
-        f"        k = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
-        f"        r = x - ({T})k * {lit(PIO2_HEX[real])};",
+        *reduction("        ", "x", "k", "r"),
         "    }",
         "    z = r * r;",
         f"    ps = r + (r * z) * ({horner(S)});",
         f"    pc = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
-        "    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
-        "        t = ps;",
-        "        ps = pc;",
-        "        pc = -t;",
-        "    }",
-        "    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
-        "        ps = -ps;",
-        "        pc = -pc;",
-        "    }",
+        *quadrant("    ", "k", "ps", "pc"),
         "    *s = ps;",
         "    *c = pc;",
         "}",
@@ -367,9 +368,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         "                    r[j] = 0;   /* libm below */",
         "                    continue;",
         "                }",
-        f"                t = r[j] * {lit(TWO_OVER_PI[real])};",
-        f"                k[j] = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
-        f"                r[j] = x[i + j] - ({T})k[j] * {lit(PIO2_HEX[real])};",
+        *reduction("                ", "x[i + j]", "k[j]", "r[j]"),
         "            }",
         "        }",
         "        trig_poly(r, s + i, c + i, 2);",
@@ -378,15 +377,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         f"                s[j] = sin{f}(x[j]);",
         f"                c[j] = cos{f}(x[j]);",
         "            }",
-        "            if (k[j - i] & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
-        "                t = s[j];",
-        "                s[j] = c[j];",
-        "                c[j] = -t;",
-        "            }",
-        "            if (k[j - i] & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
-        "                s[j] = -s[j];",
-        "                c[j] = -c[j];",
-        "            }",
+        *quadrant("            ", "k[j - i]", "s[j]", "c[j]"),
         "        }",
         "    }",
         "}",

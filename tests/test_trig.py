@@ -234,3 +234,29 @@ def test_trig_constants_are_exact_in_the_real_type(real):
     for text in texts:
         value = float.fromhex(text)
         assert float(kind(value)) == value, (real, text)
+
+
+def test_a_file_holds_one_copy_of_the_polynomials():
+    """A lone angle calls trig_sincos, unless another kernel of the same file calls
+    trig_sincos_n: then it goes through a pair too (derive.codegen.views.kernel_views), so the
+    file's helper holds the polynomials once; a file of lone angles keeps trig_sincos alone."""
+    import sympy as sp
+
+    from derive.codegen.kernels import KernelSpec, Port
+    from derive.codegen.views import kernel_views, trig_helper
+
+    q0, q1 = sp.symbols("q0 q1")
+    lone = KernelSpec("lone", (Port("theta", (q0, q1), "angles"),), (Port("y", (sp.sin(q1),), "out"),), "one angle")
+    both = KernelSpec("both", (Port("theta", (q0, q1), "angles"),),
+                      (Port("y", (sp.sin(q0) * sp.cos(q1),), "out"),), "two angles")
+    alone = kernel_views((lone,), "double", "arm")
+    assert alone[0].c_body[0] == "trig_sincos(theta[1], &a1, &a2);"
+    helper = trig_helper(alone, "double", "arm")
+    assert sum(line.startswith("static void trig_sincos(") for line in helper) == 1
+    assert not any(line.startswith("static void trig_sincos_n(") for line in helper)
+    mixed = kernel_views((lone, both), "double", "arm")
+    assert mixed[0].c_body[0] == "trig_sincos_n(theta, ts0, tc0, 2);"
+    assert mixed[1].c_body[0] == "trig_sincos_n(theta, ts0, tc0, 2);"
+    helper = trig_helper(mixed, "double", "arm")
+    assert not any(line.startswith("static void trig_sincos(") for line in helper)
+    assert sum("z = r[j] * r[j];" in line for line in helper) == 1   # the polynomials once

@@ -222,7 +222,7 @@ def trig_runs(indices: list[int], size: int) -> list[tuple[int, int]]:
 
 def print_function(f: ca.Function, language: str, real: str = "double",
                    inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None,
-                   own_trig: bool = False) -> Printed:
+                   own_trig: bool = False, lone_pair: bool = False) -> Printed:
     """Statements computing ``f``; inputs and outputs are addressed as ``<port>[k]`` by port
     name (C arrays or Python sequences). C: one statement per instruction, registers ``a0..``;
     Python: the same operations as fewer statements (:func:`_python_statements`).
@@ -233,7 +233,9 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     run of lanes (:func:`trig_runs`), straight from the input array (no copy: a vector load of
     two scalar stores would stall), into the local arrays ``ts<j>``, ``tc<j>``
     (``Printed.arrays``); a port's lone angle by ``trig_sincos`` (both at once) into two
-    registers of their own. The entry's load is printed only when something else reads it."""
+    registers of their own, or with ``lone_pair`` (a file whose other kernels call
+    trig_sincos_n: one copy of the polynomials per file) by trig_sincos_n on a pair of its port.
+    The entry's load is printed only when something else reads it."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -249,7 +251,7 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     for port in dict.fromkeys(p for p, _ in hoisted):
         indices = [i for p, i in hoisted if p == port]
         read.add(port)
-        if len(indices) == 1:   # one angle: trig_sincos, into two registers of their own
+        if len(indices) == 1 and (not lone_pair or f.nnz_in(port) == 1):   # trig_sincos, into two registers
             entry = (port, indices[0])
             for op in (ca.OP_SIN, ca.OP_COS):
                 trig_reg[entry, op] = f.sz_w() + len(trig_reg)

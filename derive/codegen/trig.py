@@ -269,8 +269,9 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
     r = x: the common case of a controller's joint angles) the polynomials run straight on x;
     else each pair is reduced first (lane by lane, as trig_sincos does), evaluated, and turned
     by its quadrant, |x| > XMAX from libm. Each function holds one copy of the polynomials; the
-    printer calls trig_sincos only for a lone angle (a one-lane pair would cost a scalar
-    target a second polynomial), so a file holds both only where its kernels need both."""
+    printer calls trig_sincos for a lone angle only in a file without trig_sincos_n (a one-lane
+    pair would cost a scalar target a second polynomial; derive.codegen.views.kernel_views),
+    so a file holds both only for a wrapper's computed angle or a one-entry port."""
     f = "f" if real == "float" else ""
     def lit(h: str) -> str:   # every value here is exact in the real type (a test checks the coefficients)
         return c_literal(float.fromhex(h), real)

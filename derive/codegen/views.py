@@ -111,10 +111,11 @@ def mask_type(n: int, source: str = "") -> str:
                                      f"{n} links")])
 
 
-def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
-    """A kernel's C and Python text; ``f``: its CasADi Function when already built."""
+def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None, lone_pair: bool = False) -> KernelView:
+    """A kernel's C and Python text; ``f``: its CasADi Function when already built; ``lone_pair``:
+    see printing.print_function."""
     f = to_function(spec) if f is None else f
-    c = print_function(f, "c", real, own_trig=True)
+    c = print_function(f, "c", real, own_trig=True, lone_pair=lone_pair)
     py = print_function(f, "python")
     c_args = tuple(f"const {prefix}_real {p.name}[{p.size}]" for p in spec.inputs)
     c_args += tuple(f"{prefix}_real {p.name}[{p.size}]" for p in spec.outputs)
@@ -124,6 +125,21 @@ def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
                       registers=c.registers, c_body=c.statements, py_body=py.statements,
                       c_locals=tuple(f"a{r}" for r in range(c.registers)) + c.arrays,
                       operations=c.operations, unused=c.unused_inputs)
+
+
+def kernel_views(specs: Sequence[KernelSpec], real: str, prefix: str,
+                 functions: dict | None = None) -> tuple[KernelView, ...]:
+    """The views of one C file's kernels (``functions``: their CasADi Functions by name, when at
+    hand). A kernel's lone angle calls trig_sincos, unless another kernel of the file calls
+    trig_sincos_n: then it goes through a pair as well, so that the file holds one copy of the
+    polynomials (derive.codegen.trig.c_helper)."""
+    fs = [(functions or {}).get(k.name) for k in specs]
+    fs = [to_function(k) if f is None else f for k, f in zip(specs, fs)]
+    views = tuple(kernel_view(k, real, prefix, f) for k, f in zip(specs, fs))
+    calls = {m for v in views for line in v.c_body for m in _TRIG_CALL.findall(line)}
+    if {"sincos", "sincos_n"} <= calls:
+        views = tuple(kernel_view(k, real, prefix, f, lone_pair=True) for k, f in zip(specs, fs))
+    return views
 
 
 def kernel_functions(d: Derivation, mode: ParamsMode, observer: str = "explicit") -> dict:
@@ -153,7 +169,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
             arm.prismatic)})
     specs = kernel_specs(d, mode, observer)
-    kernels = tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs)
+    kernels = kernel_views(specs, real, arm.name, functions)
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(

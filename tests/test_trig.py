@@ -28,25 +28,27 @@ static double where[2];
 
 static real last[3];   /* the last three arguments: the other lanes of each call */
 
-/* x through trig_sincos, and in every lane of a trig_sincos_n call of six lanes with the last
- * three arguments (so that a lane's result is checked whichever way its neighbours go: reduced
- * or not, libm or not) */
+/* x through trig_sincos, and in six lanes (both chunks of eight) of a trig_sincos_n call of ten
+ * lanes with the last three arguments (so that a lane's result is checked whichever way its
+ * neighbours go: reduced or not, libm or not) */
 static void check(real x, double rel, double per_k, double fixed)
 {
-    real xs6[6], s[7], c[7];
+    static const int at[6] = { 0, 1, 4, 7, 8, 9 };
+    real xs10[10], s[11], c[11];
     long double xs = (long double)x, ref[2], got[2], k, bound;
     int f, lane, j;
     ref[0] = sinl(xs); ref[1] = cosl(xs);
     k = floorl(fabsl(xs) * 0.63661977236758134308L * (1 + 1e-6L) + 0.5L + 1e-6L);
     for (lane = 0; lane < 7; ++lane) {
         if (lane == 6) {
-            trig_sincos(x, &s[6], &c[6]);
+            trig_sincos(x, &s[10], &c[10]);
+            got[0] = s[10]; got[1] = c[10];
         } else {
-            for (j = 0; j < 6; ++j) xs6[j] = last[(j + lane) % 3];
-            xs6[lane] = x;
-            trig_sincos_n(xs6, s, c, 6);
+            for (j = 0; j < 10; ++j) xs10[j] = last[(j + lane) % 3];
+            xs10[at[lane]] = x;
+            trig_sincos_n(xs10, s, c, 10);
+            got[0] = s[at[lane]]; got[1] = c[at[lane]];
         }
-        got[0] = s[lane]; got[1] = c[lane];
         for (f = 0; f < 2; ++f) {
             bound = rel * fabsl(ref[f]) + (k > 0 ? (1 + rel) * (k * per_k + fixed) : 0) + 4e-19L * fabsl(ref[f]);
             if (fabsl(got[f] - ref[f]) / bound > worst[f]) { worst[f] = fabsl(got[f] - ref[f]) / bound; where[f] = x; }

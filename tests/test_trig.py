@@ -26,18 +26,35 @@ HELPER
 static long double worst[2];
 static double where[2];
 
+static real last[3];   /* the last three arguments: the other lanes of each call */
+
+/* x through trig_sincos, and in six lanes (both chunks of eight) of a trig_sincos_n call of ten
+ * lanes with the last three arguments (so that a lane's result is checked whichever way its
+ * neighbours go: reduced or not, libm or not) */
 static void check(real x, double rel, double per_k, double fixed)
 {
-    real s, c;
+    static const int at[6] = { 0, 1, 4, 7, 8, 9 };
+    real xs10[10], s[11], c[11];
     long double xs = (long double)x, ref[2], got[2], k, bound;
-    int f;
-    trig_sincos(x, &s, &c);
-    ref[0] = sinl(xs); ref[1] = cosl(xs); got[0] = s; got[1] = c;
+    int f, lane, j;
+    ref[0] = sinl(xs); ref[1] = cosl(xs);
     k = floorl(fabsl(xs) * 0.63661977236758134308L * (1 + 1e-6L) + 0.5L + 1e-6L);
-    for (f = 0; f < 2; ++f) {
-        bound = rel * fabsl(ref[f]) + (k > 0 ? (1 + rel) * (k * per_k + fixed) : 0) + 4e-19L * fabsl(ref[f]);
-        if (fabsl(got[f] - ref[f]) / bound > worst[f]) { worst[f] = fabsl(got[f] - ref[f]) / bound; where[f] = x; }
+    for (lane = 0; lane < 7; ++lane) {
+        if (lane == 6) {
+            trig_sincos(x, &s[10], &c[10]);
+            got[0] = s[10]; got[1] = c[10];
+        } else {
+            for (j = 0; j < 10; ++j) xs10[j] = last[(j + lane) % 3];
+            xs10[at[lane]] = x;
+            trig_sincos_n(xs10, s, c, 10);
+            got[0] = s[at[lane]]; got[1] = c[at[lane]];
+        }
+        for (f = 0; f < 2; ++f) {
+            bound = rel * fabsl(ref[f]) + (k > 0 ? (1 + rel) * (k * per_k + fixed) : 0) + 4e-19L * fabsl(ref[f]);
+            if (fabsl(got[f] - ref[f]) / bound > worst[f]) { worst[f] = fabsl(got[f] - ref[f]) / bound; where[f] = x; }
+        }
     }
+    last[2] = last[1]; last[1] = last[0]; last[0] = x;
 }
 
 int main(int argc, char **argv)
@@ -140,7 +157,7 @@ def test_trig_compiled_within_proved_bound(real, tmp_path):
     reference, 64-bit significand: its own error is added to the bound)."""
     b = trig.bound(real)
     src = DRIVER.replace("NEXTAFTER", "nextafterf" if real == "float" else "nextafter").replace(
-        "REAL", real).replace("HELPER", "\n".join(trig.c_helper(real, "real", ())))
+        "REAL", real).replace("HELPER", "\n".join(trig.c_helper(real, "real", ("sincos", "sincos_n"))))
     (tmp_path / "trig.c").write_text(src)
     worst = []
     for cc, flags in BUILDS:
@@ -159,25 +176,52 @@ def test_trig_compiled_within_proved_bound(real, tmp_path):
 
 
 def test_printer_computes_the_trig_of_inputs_first_and_drops_dead_loads():
-    """own_trig: sin and cos of an input entry become one trig_sincos call at the top (both
-    registers), the entry's load is printed only when something else reads it, and the sine of
-    a computed value calls the trig_sin wrapper; without own_trig, libm as before."""
+    """own_trig: the sines and cosines of a port's input entries become one trig_sincos_n call
+    at the top per run of lanes, straight from the input array into the arrays ts0, tc0
+    (declared in Printed.arrays); a port's lone angle one trig_sincos call into two registers;
+    the entry's load is printed only when something else reads it, and the sine of a computed
+    value calls the trig_sin wrapper; without own_trig, libm as before."""
     import casadi as ca
 
     from derive.codegen.printing import print_function
 
     x = ca.SX.sym("x", 3)
-    f = ca.Function("k", [x], [ca.vertcat(ca.sin(x[0]) * ca.cos(x[0]) + ca.cos(x[1]), ca.sin(x[0] + x[2]))],
-                    ["x"], ["y"])
-    body = print_function(f, "c", "double", own_trig=True).statements
-    calls = [line for line in body if line.startswith("trig_sincos(")]
-    assert calls == [calls[0], calls[1]] and body[:2] == tuple(calls)
-    assert "x[0]" in calls[0] and "x[1]" in calls[1]
+    q = ca.SX.sym("q", 2)
+    f = ca.Function("k", [x, q], [ca.vertcat(ca.sin(x[0]) * ca.cos(x[0]) + ca.cos(x[1]) + ca.cos(q[1]),
+                                             ca.sin(x[0] + x[2]))], ["x", "q"], ["y"])
+    printed = print_function(f, "c", "double", own_trig=True)
+    body = printed.statements
+    calls = [line for line in body if line.startswith("trig_sincos")]
+    regs = f.sz_w()
+    assert calls == ["trig_sincos_n(x, ts0, tc0, 2);", f"trig_sincos(q[1], &a{regs}, &a{regs + 1});"]
+    assert body[:2] == tuple(calls) and printed.registers == regs + 2
+    assert printed.arrays == ("ts0[2]", "tc0[2]")
+    assert sum("= ts0[0];" in line for line in body) == 1 and sum("= tc0[0];" in line for line in body) == 1
+    assert sum("= tc0[1];" in line for line in body) == 1 and not any("= ts0[1];" in line for line in body)
+    assert sum(f"= a{regs + 1};" in line for line in body) == 1   # cos q1
     assert sum("= x[0];" in line for line in body) == 1      # read by the sum x0 + x2
-    assert not any("= x[1];" in line for line in body)       # only its cosine is taken
+    assert not any("= x[1];" in line or "= q[1];" in line for line in body)   # only their cosines are taken
     assert any("trig_sin(" in line for line in body)
     plain = print_function(f, "c", "double").statements
     assert not any("trig_" in line for line in plain) and any("sin(" in line for line in plain)
+
+
+def test_trig_runs_cover_the_entries_in_pairs_within_the_port():
+    """The runs of lanes: even counts, inside the port, covering every entry asked for."""
+    from derive.codegen.printing import trig_runs
+
+    assert trig_runs([2, 1, 3, 4, 5, 6], 7) == [(1, 6)]       # the Panda: joints 2..7
+    assert trig_runs(list(range(7)), 7) == [(0, 6), (5, 2)]   # the last entry with its neighbour
+    assert trig_runs([6], 7) == [(5, 2)]
+    assert trig_runs([0, 3], 7) == [(0, 2), (3, 2)]
+    for size in range(2, 9):
+        for mask in range(1, 2 ** size):
+            if bin(mask).count('1') < 2:
+                continue   # a lone angle goes to trig_sincos
+            wanted = [i for i in range(size) if mask >> i & 1]
+            runs = trig_runs(wanted, size)
+            assert all(n % 2 == 0 and 0 <= a and a + n <= size for a, n in runs)
+            assert all(any(a <= i < a + n for a, n in runs) for i in wanted)
 
 
 @pytest.mark.parametrize("real", ["double", "float"])
@@ -192,3 +236,29 @@ def test_trig_constants_are_exact_in_the_real_type(real):
     for text in texts:
         value = float.fromhex(text)
         assert float(kind(value)) == value, (real, text)
+
+
+def test_a_file_holds_one_copy_of_the_polynomials():
+    """A lone angle calls trig_sincos, unless another kernel of the same file calls
+    trig_sincos_n: then it goes through a pair too (derive.codegen.views.kernel_views), so the
+    file's helper holds the polynomials once; a file of lone angles keeps trig_sincos alone."""
+    import sympy as sp
+
+    from derive.codegen.kernels import KernelSpec, Port
+    from derive.codegen.views import kernel_views, trig_helper
+
+    q0, q1 = sp.symbols("q0 q1")
+    lone = KernelSpec("lone", (Port("theta", (q0, q1), "angles"),), (Port("y", (sp.sin(q1),), "out"),), "one angle")
+    both = KernelSpec("both", (Port("theta", (q0, q1), "angles"),),
+                      (Port("y", (sp.sin(q0) * sp.cos(q1),), "out"),), "two angles")
+    alone = kernel_views((lone,), "double", "arm")
+    assert alone[0].c_body[0] == "trig_sincos(theta[1], &a1, &a2);"
+    helper = trig_helper(alone, "double", "arm")
+    assert sum(line.startswith("static void trig_sincos(") for line in helper) == 1
+    assert not any(line.startswith("static void trig_sincos_n(") for line in helper)
+    mixed = kernel_views((lone, both), "double", "arm")
+    assert mixed[0].c_body[0] == "trig_sincos_n(theta, ts0, tc0, 2);"
+    assert mixed[1].c_body[0] == "trig_sincos_n(theta, ts0, tc0, 2);"
+    helper = trig_helper(mixed, "double", "arm")
+    assert not any(line.startswith("static void trig_sincos(") for line in helper)
+    assert sum("z = r[j] * r[j];" in line for line in helper) == 1   # the polynomials once

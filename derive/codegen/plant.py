@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.codegen.kernels import KernelSpec, LinearSolve, ParamsMode, Port
-from derive.codegen.views import ArmView, KernelView, kernel_view, trig_helper
+from derive.codegen.views import ArmView, KernelView, kernel_views, trig_helper
 from derive.control.pipeline import Derivation
 
 # Name of each exported function and what it returns, for headers and docstrings.
@@ -130,7 +130,7 @@ def plant_view(d: Derivation, real: str, mode: ParamsMode) -> PlantView:
                              matrix=k.name in ("mass_matrix", "input_matrix"), doc=docs[k.name])
 
     functions = tuple(function(k) for k in specs)
-    kernels = tuple(kernel_view(k, real, d.arm.name) for k in specs)
+    kernels = kernel_views(specs, real, d.arm.name)
     return PlantView(kernels=kernels, functions=functions, trig_helper=trig_helper(kernels, real, d.arm.name))
 
 

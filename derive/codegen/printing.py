@@ -63,12 +63,14 @@ _TRIG = {ca.OP_SIN: "trig_sin({0})", ca.OP_COS: "trig_cos({0})"}   # own_trig (d
 
 @dataclass(frozen=True)
 class Printed:
-    """A kernel's body: register count, statements, and operation count."""
+    """A kernel's body: register count, statements, and operation count; ``arrays``: the
+    local arrays the statements use besides the registers (C declarators, e.g. ``ts0[6]``)."""
 
     registers: int
     statements: tuple[str, ...]
     operations: int
     unused_inputs: tuple[str, ...]
+    arrays: tuple[str, ...] = ()
 
 
 def expected_literal(value: float, real: str) -> str:
@@ -199,17 +201,41 @@ def _hoisted_trig(f: ca.Function) -> tuple[dict[tuple[int, int], None], dict[int
     return entries, takes, used
 
 
+def trig_runs(indices: list[int], size: int) -> list[tuple[int, int]]:
+    """Runs (first entry, count) of an input port of ``size`` entries (at least two) whose lanes
+    cover ``indices``, every count even (trig_sincos_n works in pairs of lanes:
+    derive.codegen.trig): pairs (i, i + 1) from each index not yet covered, (i - 1, i) for the
+    port's last entry, consecutive pairs merged."""
+    starts: list[int] = []
+    for i in sorted(indices):
+        if starts and i < starts[-1] + 2:
+            continue
+        starts.append(i if i + 1 < size else i - 1)
+    runs: list[tuple[int, int]] = []
+    for a in starts:
+        if runs and runs[-1][0] + runs[-1][1] == a:
+            runs[-1] = (runs[-1][0], runs[-1][1] + 2)
+        else:
+            runs.append((a, 2))
+    return runs
+
+
 def print_function(f: ca.Function, language: str, real: str = "double",
                    inputs: tuple[str, ...] | None = None, outputs: tuple[str, ...] | None = None,
-                   own_trig: bool = False) -> Printed:
+                   own_trig: bool = False, lone_pair: bool = False) -> Printed:
     """Statements computing ``f``; inputs and outputs are addressed as ``<port>[k]`` by port
     name (C arrays or Python sequences). C: one statement per instruction, registers ``a0..``;
     Python: the same operations as fewer statements (:func:`_python_statements`).
 
-    ``own_trig`` (C): sin and cos call the file's ``trig_sincos`` (derive.codegen.trig.c_helper)
-    instead of libm; those of an input entry are computed first (``trig_sincos``, both at once),
-    into two registers of their own, so that they overlap with the rest of the kernel, and the
-    entry's load is printed only when something else reads it."""
+    ``own_trig`` (C): sin and cos call the file's own (derive.codegen.trig.c_helper) instead of
+    libm. Those of input entries are computed first, so that they overlap with the rest of the
+    kernel: a port's several angles at once, one ``trig_sincos_n(theta + 1, ts0, tc0, 6)`` per
+    run of lanes (:func:`trig_runs`), straight from the input array (no copy: a vector load of
+    two scalar stores would stall), into the local arrays ``ts<j>``, ``tc<j>``
+    (``Printed.arrays``); a port's lone angle by ``trig_sincos`` (both at once) into two
+    registers of their own, or with ``lone_pair`` (a file whose other kernels call
+    trig_sincos_n: one copy of the polynomials per file) by trig_sincos_n on a pair of its port.
+    The entry's load is printed only when something else reads it."""
     ins = inputs or tuple(f.name_in())
     outs = outputs or tuple(f.name_out())
     suffix = "f" if real == "float" else ""
@@ -218,18 +244,40 @@ def print_function(f: ca.Function, language: str, real: str = "double",
     ops = 0
     read: set[int] = set()
     hoisted, takes, loads = _hoisted_trig(f) if own_trig and language == "c" else ({}, {}, set())
-    trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # (entry, OP_SIN / OP_COS) -> its register
-    for entry in hoisted:
-        for op in (ca.OP_SIN, ca.OP_COS):
-            trig_reg[entry, op] = f.sz_w() + len(trig_reg)
-        read.add(entry[0])
-        lines.append(f"trig_sincos({ins[entry[0]]}[{entry[1]}], &a{trig_reg[entry, ca.OP_SIN]}, "
-                     f"&a{trig_reg[entry, ca.OP_COS]});")
+    lane: dict[tuple[int, int], tuple[int, int]] = {}   # input entry -> (trig_sincos_n call, lane)
+    trig_reg: dict[tuple[tuple[int, int], int], int] = {}   # a lone angle: (entry, OP_SIN / OP_COS) -> register
+    arrays: list[str] = []
+    taken = set(ins) | set(outs)
+    for port in dict.fromkeys(p for p, _ in hoisted):
+        indices = [i for p, i in hoisted if p == port]
+        read.add(port)
+        if len(indices) == 1 and (not lone_pair or f.nnz_in(port) == 1):   # trig_sincos, into two registers
+            entry = (port, indices[0])
+            for op in (ca.OP_SIN, ca.OP_COS):
+                trig_reg[entry, op] = f.sz_w() + len(trig_reg)
+            lines.append(f"trig_sincos({ins[port]}[{indices[0]}], &a{trig_reg[entry, ca.OP_SIN]}, "
+                         f"&a{trig_reg[entry, ca.OP_COS]});")
+            continue
+        for start, count in trig_runs(indices, f.nnz_in(port)):
+            j = len(arrays) // 2
+            names = (f"ts{j}", f"tc{j}")
+            if taken & set(names):
+                raise DerivationError(f"kernel {f.name()}: a port is named like a sine array ({names})")
+            arrays += [f"{names[0]}[{count}]", f"{names[1]}[{count}]"]
+            source = f"{ins[port]} + {start}" if start else ins[port]
+            lines.append(f"trig_sincos_n({source}, {names[0]}, {names[1]}, {count});")
+            for i in indices:
+                if start <= i < start + count:
+                    lane.setdefault((port, i), (j, i - start))
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
         args = f.instruction_input(k)
         res = f.instruction_output(k)
-        if k in takes:
+        if k in takes and takes[k] in lane:
+            j, i = lane[takes[k]]
+            lines.append(f"a{res[0]} = t{'s' if op == ca.OP_SIN else 'c'}{j}[{i}];")
+            ops += 1
+        elif k in takes:
             lines.append(f"a{res[0]} = a{trig_reg[takes[k], op]};")
             ops += 1
         elif op == ca.OP_INPUT:
@@ -253,4 +301,4 @@ def print_function(f: ca.Function, language: str, real: str = "double",
         lines = _python_statements(f, ins, outs)
     unused = tuple(name for i, name in enumerate(ins) if i not in read)
     return Printed(registers=f.sz_w() + len(trig_reg), statements=tuple(lines), operations=ops,
-                   unused_inputs=unused)
+                   unused_inputs=unused, arrays=tuple(arrays))

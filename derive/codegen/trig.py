@@ -5,8 +5,10 @@ they are libm calls (a third of the Panda's ``npid_step``: the call, and a
 result the rest of the step waits for). The C printer
 (:mod:`derive.codegen.printing`) calls instead a static ``trig_sincos`` (out
 of line: one copy per file) of the real type, defined by :func:`c_helper` at the top of each C file that
-needs it, and computes the sines and cosines of the kernel's input angles first
-so that the processor overlaps them with the rest.
+needs it, and computes the sines and cosines of the kernel's input angles first so that the
+processor overlaps them with the rest: a port's several angles in one ``trig_sincos_n``
+call, which works on pairs of lanes that the compiler evaluates as one two-lane vector (SSE2
+for double at gcc -O2), the same operations per lane, so the bound below holds for every lane.
 
 Method (Cody and Waite's reduction with one constant; polynomials on the
 reduced interval; Muller, *Elementary Functions*, 3rd ed., ch. 11):
@@ -251,9 +253,26 @@ def k_max(x):
 
 def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")) -> tuple[str, ...]:
     """The C text of the file's own sine and cosine for ``real`` ("double" or "float"),
-    ``real_type`` the C name of the type (C99, <math.h>): ``static void trig_sincos(real x,
-    real *s, real *c)``, and the ``needed`` ones among its wrappers ``trig_sin``, ``trig_cos``
-    (only those the file calls: compilers warn of an unused static function)."""
+    ``real_type`` the C name of the type (C99, <math.h>), the ``needed`` ones of (only those the
+    file calls: compilers warn of an unused static function):
+
+    * ``"sincos"``: ``static void trig_sincos(real x, real *s, real *c)``, one angle;
+    * ``"sincos_n"``: ``static void trig_sincos_n(const real *x, real *s, real *c, int n)``,
+      s[i] = sin x[i] and c[i] = cos x[i] for n lanes (n even, the arrays not overlapping);
+    * ``"sin"``, ``"cos"``: ``trig_sin(x)``, ``trig_cos(x)``, wrappers of trig_sincos.
+
+    trig_sincos_n goes in pairs of lanes: ``trig_poly`` evaluates the polynomials of lanes
+    (i, i + 1) in a loop of exactly two iterations over ``restrict`` arrays, which gcc -O2 turns
+    into one two-lane vector evaluation (SSE2 for double). Each lane is still the same IEEE
+    operations in the same order as trig_sincos (a vector instruction rounds each lane as its
+    scalar one does), so the proved bound holds lane by lane. When every |x[i]| <= PIO4 (k = 0,
+    r = x: the common case of a controller's joint angles) the polynomials run straight on x;
+    else up to eight lanes at a time are reduced (lane by lane, as trig_sincos does), evaluated
+    in one trig_poly call, and turned by their quadrants, |x| > XMAX from libm (a pair at a time
+    cost the Panda's npid_step 14 % at angles within +-2.88 rad, against 5 % less here). Each function holds one copy of the polynomials; the
+    printer calls trig_sincos for a lone angle only in a file without trig_sincos_n (a one-lane
+    pair would cost a scalar target a second polynomial; derive.codegen.views.kernel_views),
+    so a file holds both only for a wrapper's computed angle or a one-entry port."""
     f = "f" if real == "float" else ""
     def lit(h: str) -> str:   # every value here is exact in the real type (a test checks the coefficients)
         return c_literal(float.fromhex(h), real)
@@ -266,44 +285,107 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
             text = f"{lit(c)} + z * ({text})"
         return text
 
+    def reduction(pad: str, x: str, k: str, r: str) -> tuple[str, ...]:   # x = k pi/2 + r
+        return (f"{pad}t = {x} * {lit(TWO_OVER_PI[real])};",
+                f"{pad}{k} = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
+                f"{pad}{r} = {x} - ({T}){k} * {lit(PIO2_HEX[real])};")
+
+    def quadrant(pad: str, k: str, s: str, c: str) -> tuple[str, ...]:   # (sin r, cos r) -> (sin x, cos x)
+        return (f"{pad}if ({k} & 1) {{   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
+                f"{pad}    t = {s};", f"{pad}    {s} = {c};", f"{pad}    {c} = -t;", f"{pad}}}",
+                f"{pad}if ({k} & 2) {{   /* x = r + pi (mod 2 pi): both change sign */",
+                f"{pad}    {s} = -{s};", f"{pad}    {c} = -{c};", f"{pad}}}")
+
     b = bound(real)
+    pio4, xmax = lit(PIO4_HEX[real]), lit(float(XMAX[real]).hex())
+    one = "sincos" in needed or "sin" in needed or "cos" in needed
     head = (
         f"/* sin x and cos x (derive.codegen.trig): x = k pi/2 + r, |r| <= {float(R)}, polynomials in r;",
         f" * proved |error| <= {b.relative:.3g} |value| + {b.per_k:.3g} |k| + {b.fixed:.3g} (0 for k = 0),",
         " * for IEEE arithmetic in this order (a contracted multiply-add included; no underflow); no step",
         f" * needs extra precision that -ffast-math could remove. libm's sin{f} and cos{f} for |x| > {XMAX[real]}.",
+    ) + ((
         " * One function for both (the polynomials are most of the code: one copy keeps a small",
         " * target's flash); trig_sin and trig_cos call it. */",
+    ) if one else (
+        " * trig_sincos_n takes n lanes (n even), in pairs: trig_poly's loop of two lanes is one vector",
+        " * evaluation where the compiler vectorises it, the same operations in the same order in each",
+        " * lane, so the bound holds for each. One copy of the polynomials (trig_poly): a small",
+        " * target's flash. */",
+    ))
+    scalar = (
         f"static void trig_sincos({T} x, {T} *s, {T} *c)",
         "{",
         f"    {T} t, r = x, z, ps, pc;",
         "    long k = 0;",
-        f"    if (!(fabs{f}(x) <= {lit(PIO4_HEX[real])})) {{   /* else k = 0, r = x: no reduction */",
-        f"        if (!(fabs{f}(x) <= {lit(float(XMAX[real]).hex())})) {{",
+        f"    if (!(fabs{f}(x) <= {pio4})) {{   /* else k = 0, r = x: no reduction */",
+        f"        if (!(fabs{f}(x) <= {xmax})) {{",
         f"            *s = sin{f}(x);",
         f"            *c = cos{f}(x);",
         "            return;",
         "        }",
-        f"        t = x * {lit(TWO_OVER_PI[real])};",
-        f"        k = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
-        f"        r = x - ({T})k * {lit(PIO2_HEX[real])};",
+        *reduction("        ", "x", "k", "r"),
         "    }",
         "    z = r * r;",
         f"    ps = r + (r * z) * ({horner(S)});",
         f"    pc = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
-        "    if (k & 1) {   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
-        "        t = ps;",
-        "        ps = pc;",
-        "        pc = -t;",
-        "    }",
-        "    if (k & 2) {   /* x = r + pi (mod 2 pi): both change sign */",
-        "        ps = -ps;",
-        "        pc = -pc;",
-        "    }",
+        *quadrant("    ", "k", "ps", "pc"),
         "    *s = ps;",
         "    *c = pc;",
         "}",
     )
-    return head + tuple(line for name in ("sin", "cos") if name in needed for line in (
+    pairs = (
+        ("/* trig_sincos_n: the same method for n lanes (n even) in pairs, trig_poly's loop of two lanes one",
+         " * vector evaluation where the compiler vectorises it (the same operations in the same order",
+         " * in each lane, so the bound holds for each). */") if one else ()) + (
+        f"static void trig_poly(const {T} *restrict r, {T} *restrict s, {T} *restrict c, int n)",
+        "{",
+        f"    {T} z;",
+        "    int i, j;",
+        "    for (i = 0; i < n; i += 2)",
+        "        for (j = i; j < i + 2; ++j) {   /* a pair of lanes */",
+        "            z = r[j] * r[j];",
+        f"            s[j] = r[j] + (r[j] * z) * ({horner(S)});",
+        f"            c[j] = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
+        "        }",
+        "}",
+        "",
+        f"static void trig_sincos_n(const {T} *restrict x, {T} *restrict s, {T} *restrict c, int n)",
+        "{",
+        f"    {T} r[8], t;",
+        "    long k[8];",
+        "    int i, j, far = 0;",
+        "    for (i = 0; i < n; ++i)",
+        f"        far |= !(fabs{f}(x[i]) <= {pio4});",
+        "    if (!far) {   /* every k = 0, r = x: no reduction */",
+        "        trig_poly(x, s, c, n);",
+        "        return;",
+        "    }",
+        "    for (i = 0; i < n; i += 8) {   /* up to eight lanes at a time: reduced, evaluated, turned */",
+        "        int m = n - i < 8 ? n - i : 8;",
+        "        for (j = 0; j < m; ++j) {",
+        "            r[j] = x[i + j];",
+        "            k[j] = 0;",
+        f"            if (!(fabs{f}(r[j]) <= {pio4})) {{",
+        f"                if (!(fabs{f}(r[j]) <= {xmax})) {{",
+        "                    r[j] = 0;   /* libm below */",
+        "                    continue;",
+        "                }",
+        *reduction("                ", "x[i + j]", "k[j]", "r[j]"),
+        "            }",
+        "        }",
+        "        trig_poly(r, s + i, c + i, m);",
+        "        for (j = i; j < i + m; ++j) {",
+        f"            if (!(fabs{f}(x[j]) <= {xmax})) {{",
+        f"                s[j] = sin{f}(x[j]);",
+        f"                c[j] = cos{f}(x[j]);",
+        "            }",
+        *quadrant("            ", "k[j - i]", "s[j]", "c[j]"),
+        "        }",
+        "    }",
+        "}",
+    )
+    text = head + (scalar if one else ()) + ((("",) if one else ()) + pairs if "sincos_n" in needed else ())
+    return text + tuple(line for name in ("sin", "cos") if name in needed for line in (
         "", f"static {T} trig_{name}({T} x)", "{", f"    {T} s, c;", "    trig_sincos(x, &s, &c);",
         f"    return {name[0]};", "}"))

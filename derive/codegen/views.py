@@ -51,6 +51,7 @@ class KernelView:
     py_outputs: tuple[tuple[str, int], ...]
     registers: int
     c_body: tuple[str, ...]
+    c_locals: tuple[str, ...]    # the C body's locals: registers a0.., then its arrays (ts0[6], ...)
     py_body: tuple[str, ...]
     operations: int
     unused: tuple[str, ...]      # input ports the maths does not read
@@ -87,7 +88,7 @@ class ArmView:
     trig_helper: tuple[str, ...] = ()           # the C file's own sin and cos (derive.codegen.trig), when used
 
 
-_TRIG_CALL = re.compile(r"\btrig_(sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
+_TRIG_CALL = re.compile(r"\btrig_(sincos_n|sincos|sin|cos)\(")   # the printer's calls (printing.print_function)
 
 
 def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[str, ...]:
@@ -96,7 +97,7 @@ def trig_helper(kernels: Sequence[KernelView], real: str, prefix: str) -> tuple[
     calls = {m for k in kernels for line in k.c_body for m in _TRIG_CALL.findall(line)}
     if not calls:
         return ()
-    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sin", "cos") if f in calls))
+    return c_helper(real, f"{prefix}_real", tuple(f for f in ("sincos", "sincos_n", "sin", "cos") if f in calls))
 
 
 def mask_type(n: int, source: str = "") -> str:
@@ -110,10 +111,11 @@ def mask_type(n: int, source: str = "") -> str:
                                      f"{n} links")])
 
 
-def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
-    """A kernel's C and Python text; ``f``: its CasADi Function when already built."""
+def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None, lone_pair: bool = False) -> KernelView:
+    """A kernel's C and Python text; ``f``: its CasADi Function when already built; ``lone_pair``:
+    see printing.print_function."""
     f = to_function(spec) if f is None else f
-    c = print_function(f, "c", real, own_trig=True)
+    c = print_function(f, "c", real, own_trig=True, lone_pair=lone_pair)
     py = print_function(f, "python")
     c_args = tuple(f"const {prefix}_real {p.name}[{p.size}]" for p in spec.inputs)
     c_args += tuple(f"{prefix}_real {p.name}[{p.size}]" for p in spec.outputs)
@@ -121,7 +123,23 @@ def kernel_view(spec: KernelSpec, real: str, prefix: str, f=None) -> KernelView:
                       py_args=tuple(p.name for p in spec.inputs),
                       py_outputs=tuple((p.name, p.size) for p in spec.outputs),
                       registers=c.registers, c_body=c.statements, py_body=py.statements,
+                      c_locals=tuple(f"a{r}" for r in range(c.registers)) + c.arrays,
                       operations=c.operations, unused=c.unused_inputs)
+
+
+def kernel_views(specs: Sequence[KernelSpec], real: str, prefix: str,
+                 functions: dict | None = None) -> tuple[KernelView, ...]:
+    """The views of one C file's kernels (``functions``: their CasADi Functions by name, when at
+    hand). A kernel's lone angle calls trig_sincos, unless another kernel of the file calls
+    trig_sincos_n: then it goes through a pair as well, so that the file holds one copy of the
+    polynomials (derive.codegen.trig.c_helper)."""
+    fs = [(functions or {}).get(k.name) for k in specs]
+    fs = [to_function(k) if f is None else f for k, f in zip(specs, fs)]
+    views = tuple(kernel_view(k, real, prefix, f) for k, f in zip(specs, fs))
+    calls = {m for v in views for line in v.c_body for m in _TRIG_CALL.findall(line)}
+    if {"sincos", "sincos_n"} <= calls:
+        views = tuple(kernel_view(k, real, prefix, f, lone_pair=True) for k, f in zip(specs, fs))
+    return views
 
 
 def kernel_functions(d: Derivation, mode: ParamsMode, observer: str = "explicit") -> dict:
@@ -151,7 +169,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
             arm.prismatic)})
     specs = kernel_specs(d, mode, observer)
-    kernels = tuple(kernel_view(k, real, arm.name, (functions or {}).get(k.name)) for k in specs)
+    kernels = kernel_views(specs, real, arm.name, functions)
     baked = tuple(comment_text(f"{name} = {value!r}{' ' + docs[name].unit if docs[name].unit else ''} "
                                f"({docs[name].field})") for name, value in values)
     return ArmView(

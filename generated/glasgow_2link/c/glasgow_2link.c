@@ -80,18 +80,18 @@ int glasgow_2link_npid_init(glasgow_2link_npid_state *s, const glasgow_2link_inp
 int glasgow_2link_npid_step(glasgow_2link_npid_state *s, const glasgow_2link_input *in, real dt, real u[N],
     mask *clipped)
 {
-    real v[N], step[N], next[N];
+    real v[N], step[N];
     mask hit = 0;
     int i;
     if (!(finite_all(&dt, 1) && dt > 0)) return GLASGOW_2LINK_EDT;
     if (!input_finite(in) || !finite_all(s->int_e, N)) return GLASGOW_2LINK_ENONFINITE;
     glasgow_2link_kernel_npid(in->theta, in->dtheta, in->yd, in->dyd, in->ddyd, s->int_e, &dt, v, step);
     if (!finite_all(v, N) || !finite_all(step, N)) return GLASGOW_2LINK_ENONFINITE;
-    for (i = 0; i < N; ++i) {
-        if (clip(&v[i], u_max[i])) { next[i] = s->int_e[i]; hit |= (mask)1 << i; }
-        else next[i] = step[i];
+    for (i = 0; i < N; ++i) {   /* every check passed: u and the state written once, in place */
+        if (clip(&v[i], u_max[i])) hit |= (mask)1 << i;   /* clipped: the integral holds */
+        else s->int_e[i] = step[i];
+        u[i] = v[i];
     }
-    for (i = 0; i < N; ++i) { s->int_e[i] = next[i]; u[i] = v[i]; }
     if (clipped != NULL) *clipped = hit;
     return GLASGOW_2LINK_OK;
 }

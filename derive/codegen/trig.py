@@ -290,6 +290,10 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
                 f"{pad}{k} = (long)(t + copysign{f}({lit('0x1p-1')}, t));",
                 f"{pad}{r} = {x} - ({T}){k} * {lit(PIO2_HEX[real])};")
 
+    def polynomials(pad: str, r: str, s: str, c: str) -> tuple[str, ...]:   # (sin r, cos r), z = r * r
+        return (f"{pad}{s} = {r} + ({r} * z) * ({horner(S)});",
+                f"{pad}{c} = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});")
+
     def quadrant(pad: str, k: str, s: str, c: str) -> tuple[str, ...]:   # (sin r, cos r) -> (sin x, cos x)
         return (f"{pad}if ({k} & 1) {{   /* x = r + pi/2 (mod pi): sin x = cos r, cos x = -sin r */",
                 f"{pad}    t = {s};", f"{pad}    {s} = {c};", f"{pad}    {c} = -t;", f"{pad}}}",
@@ -327,8 +331,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         *reduction("        ", "x", "k", "r"),
         "    }",
         "    z = r * r;",
-        f"    ps = r + (r * z) * ({horner(S)});",
-        f"    pc = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
+        *polynomials("    ", "r", "ps", "pc"),
         *quadrant("    ", "k", "ps", "pc"),
         "    *s = ps;",
         "    *c = pc;",
@@ -345,8 +348,7 @@ def c_helper(real: str, real_type: str, needed: tuple[str, ...] = ("sin", "cos")
         "    for (i = 0; i < n; i += 2)",
         "        for (j = i; j < i + 2; ++j) {   /* a pair of lanes */",
         "            z = r[j] * r[j];",
-        f"            s[j] = r[j] + (r[j] * z) * ({horner(S)});",
-        f"            c[j] = ({lit('0x1p+0')} - {lit('0x1p-1')} * z) + (z * z) * ({horner(Q)});",
+        *polynomials("            ", "r[j]", "s[j]", "c[j]"),
         "        }",
         "}",
         "",

@@ -12,7 +12,7 @@ command must exit 0, or, for an arm whose file has a real defect, ``init`` must
 give the one expected refusal (exit 2, the text of corpus.toml's ``refusal``, no
 traceback). Each command runs under a timeout (``CORPUS_TIMEOUT`` seconds,
 default 900); wall time and peak resident memory (``os.wait4``'s ru_maxrss of
-that command's process) are recorded per arm and command, beside Pinocchio's
+that command's process, started from the small launcher benchmarks/peak.py) are recorded per arm and command, beside Pinocchio's
 URDF load time. ``python -m benchmarks.corpus [--out DIR] [NAME ...]`` writes
 ``DIR/corpus.json`` and ``DIR/corpus.md`` (default DIR: build/corpus) and exits
 1 when a command failed.
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 import tempfile
@@ -35,6 +34,7 @@ from derive.jsonio import dumps
 TITLE = "URDF corpus: every arm through every command"
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = float(os.environ.get("CORPUS_TIMEOUT", "900"))
+PEAK = Path(__file__).resolve().with_name("peak.py")   # the launcher that measures a command
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wvla", "-O2"]
 
 
@@ -66,31 +66,22 @@ Run = tuple[int | None, float, float | None, str, float | None]
 
 def run_command(argv: list[str], cwd: Path, timeout: float) -> Run:
     """(exit code or None on timeout, wall time, peak MiB, the last lines of stderr, CPU time) of
-    ``argv``: the CPU time is user + system of the command's process (os.wait4), the figure the
-    goals read (the wall time of a shared machine measures the other loads as much as the command)."""
+    ``argv``: the CPU time is user + system of the command's process and its waited-for children,
+    the figure the goals read (the wall time of a shared machine measures the other loads as much
+    as the command); the peak is the command's own, measured through benchmarks/peak.py (a child
+    of this process would report at least this process's size)."""
     start = time.perf_counter()
-    with tempfile.TemporaryFile() as err:
+    with tempfile.TemporaryFile() as err, tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, DERIVE_CACHE_DIR=str(Path(cwd) / ".derive-cache"))   # cold, and never the user's
         env.pop("PYTHONDONTWRITEBYTECODE", None)   # Python's bytecode cache on, as for a user (run_corpus primes it)
-        proc = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
-        code, usage = None, None
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                code = os.waitstatus_to_exitcode(status)
-                break
-            if time.perf_counter() - start > timeout:
-                os.killpg(proc.pid, signal.SIGKILL)
-                _, status, usage = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        proc.returncode = code if code is not None else -9
+        report = Path(tmp) / "usage"
+        subprocess.run([sys.executable, "-I", "-S", str(PEAK), str(report), repr(timeout), *argv], cwd=cwd, env=env,
+                       stdout=subprocess.DEVNULL, stderr=err, check=True)
+        code, user, system, kib = report.read_text().split()
         err.seek(0)
         text = err.read().decode("utf-8", "replace")
     wall = time.perf_counter() - start
-    peak = usage.ru_maxrss / 1024 if usage is not None else None
-    cpu = usage.ru_utime + usage.ru_stime if usage is not None else None
-    return code, wall, peak, text, cpu
+    return None if code == "None" else int(code), wall, int(kib) / 1024, text, float(user) + float(system)
 
 
 def _derive(*args: str) -> list[str]:

@@ -5,12 +5,18 @@ Columns (n joints): ``t`` [s]; ``theta1..n`` [rad or m]; exactly one of ``tau1..
 (joint torque [N m or N]), ``current1..n`` (motor current [A]: joint torque gr Kt i)
 or ``u1..n`` (the input u of eq. 12: voltage [V], or motor torque for torque-actuated
 joints); optionally ``dtheta1..n`` [rad/s or m/s] (a tachometer: then the velocity is
-not differentiated from theta). Lines starting with ``#`` are comments. Times must
+not differentiated from theta); optionally ``valid`` (1: the sample is used, 0: it is not;
+any other value is an error). Lines starting with ``#`` are comments. Times must
 increase, uniformly to 1 % (the filter is designed for one sample rate).
+
+:func:`log_paths` expands the LOG arguments of derive identify (a shell-style glob given as
+one argument is expanded here, sorted); every run is read on its own (:func:`read_log`)
+and filtered on its own (derive.identify.signals).
 """
 from __future__ import annotations
 
 import csv
+import glob
 import io
 import math
 import re
@@ -30,7 +36,8 @@ _NAME = re.compile(r"([a-z_]+?)(\d+)\Z")
 @dataclass(frozen=True)
 class Log:
     """A validated log: t (N,), theta (N x n), dtheta (N x n or None), the measured
-    signal (N x n) of kind ``family`` (FAMILIES), the file it came from."""
+    signal (N x n) of kind ``family`` (FAMILIES), the file it came from, and the ``valid``
+    column (N, bool; None: the log has none, every sample is valid)."""
 
     t: np.ndarray
     theta: np.ndarray
@@ -38,6 +45,7 @@ class Log:
     signal: np.ndarray
     family: str
     source: str
+    valid: np.ndarray | None = None
 
     @property
     def samples(self) -> int:
@@ -53,12 +61,12 @@ def _columns(header: list[str], n: int, where: str) -> dict[str, list[int]]:
     """Column indices by family name (t, theta, dtheta, and one of FAMILIES); DataError for an
     unknown, repeated or missing column."""
     expected = (f"t, theta1..theta{n}, one of tau1..tau{n}, current1..current{n} or u1..u{n}, "
-                f"optionally dtheta1..dtheta{n}")
+                f"optionally dtheta1..dtheta{n} and valid")
     found: dict[str, dict[int, int]] = {}
     for k, raw in enumerate(header):
         name = raw.strip()
-        if name == "t":
-            fam, joint = "t", 0
+        if name in ("t", "valid"):
+            fam, joint = name, 0
         else:
             m = _NAME.match(name)
             fam, joint = (m[1], int(m[2])) if m else (name, -1)
@@ -75,6 +83,8 @@ def _columns(header: list[str], n: int, where: str) -> dict[str, list[int]]:
     need = {"t": [0], "theta": list(range(1, n + 1)), families[0]: list(range(1, n + 1))}
     if "dtheta" in found:
         need["dtheta"] = list(range(1, n + 1))
+    if "valid" in found:
+        need["valid"] = [0]
     for fam, joints in need.items():
         missing = [f"{fam}{j}" if fam != "t" else "t" for j in joints if j not in found.get(fam, {})]
         if missing:
@@ -134,9 +144,42 @@ def read_log(path: str | Path, n: int) -> Log:
             raise DataError(f"{where}: line {rows[worst + 1]}: expected uniform sample times (within 1 % of the "
                             f"median interval {median:.6g} s), got an interval of {step[worst]:.6g} s; resample "
                             "the log onto a uniform grid")
+    valid = None
+    if "valid" in cols:
+        flag = data[:, cols["valid"][0]]
+        bad = (flag != 0) & (flag != 1)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DataError(f"{where}: line {rows[r]}, column 'valid': expected 0 or 1 (1: the sample is used, 0: it "
+                            f"is left out), got {float(flag[r])!r} ({int(bad.sum())} such value"
+                            f"{'s' if bad.sum() > 1 else ''})")
+        valid = flag == 1
     family = next(f for f in FAMILIES if f in cols)
     return Log(t=t, theta=data[:, cols["theta"]], dtheta=data[:, cols["dtheta"]] if "dtheta" in cols else None,
-               signal=data[:, cols[family]], family=family, source=where)
+               signal=data[:, cols[family]], family=family, source=where, valid=valid)
+
+
+def log_paths(arguments: list[str | Path]) -> list[Path]:
+    """The LOG arguments as files: each one that holds a glob character (``*``, ``?``, ``[``) and
+    is not itself an existing file is expanded (sorted); the rest kept as given. DataError for a
+    glob that matches no file, and for a file named twice."""
+    out: list[Path] = []
+    for arg in arguments:
+        text = str(arg)
+        if any(c in text for c in "*?[") and not Path(text).exists():
+            found = sorted(glob.glob(text))
+            if not found:
+                raise DataError(f"{text}: expected the glob to match at least one log file, got no match")
+            out += [Path(f) for f in found]
+        else:
+            out.append(Path(text))
+    seen: dict[Path, str] = {}
+    for path in out:
+        key = Path(path).resolve()
+        if key in seen:
+            raise DataError(f"{path}: expected each log once, got it twice (also as {seen[key]})")
+        seen[key] = str(path)
+    return out
 
 
 class _LazyLines:

@@ -31,6 +31,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from derive.errors import DataError
 from derive.identify import CUTOFF
+from derive.identify.exclude import Mask
 from derive.identify.log import Log
 from derive.model.actuators import terms
 from derive.model.chain import Actuation, Chain
@@ -39,11 +40,31 @@ ORDER = 4         # of the Butterworth filter (CUTOFF: derive.identify, the defa
 
 
 @dataclass(frozen=True)
+class Run:
+    """How one log became rows: its file, sample rate [Hz], samples, decimation r, rows dropped
+    at each end of every stretch (the filter's transients), the stretches filtered on their
+    own, the rows and torque equations it gives, what each exclusion rule removed
+    (derive.identify.exclude.Mask.removed)."""
+
+    source: str
+    rate: float
+    samples: int
+    decimation: int
+    edge: int
+    stretches: int
+    rows: int
+    equations: int
+    removed: dict
+
+
+@dataclass(frozen=True)
 class Samples:
-    """The rows of the regression: t (N), theta, dtheta, ddtheta, the torque y of
-    J theta'' + G and sign(theta') through the same filter as the torque (the Coulomb
-    columns, N x n each); how they were made (cut-off [Hz], the log's rate [Hz],
-    decimation r, rows dropped at each end)."""
+    """The rows of the regression, over every log: t (N, each log's own time), theta, dtheta,
+    ddtheta, the torque y of J theta'' + G and sign(theta') through the same filter as the
+    torque (the Coulomb columns), N x n each; ``use`` (N x n, bool): the torque equations
+    used (False where a torque was excluded or lies within a filter transient of a gap:
+    y is 0 there); ``run`` (N): the index of the log a row comes from; ``runs``: how each
+    log was made into rows; the cut-off [Hz]."""
 
     t: np.ndarray
     theta: np.ndarray
@@ -51,10 +72,22 @@ class Samples:
     ddtheta: np.ndarray
     y: np.ndarray
     sign: np.ndarray
+    use: np.ndarray
+    run: np.ndarray
+    runs: tuple[Run, ...]
     cutoff: float
-    rate: float
-    decimation: int
-    edge: int
+
+    @property
+    def equations(self) -> int:
+        return int(self.use.sum())
+
+    @staticmethod
+    def stack(parts: list["Samples"]) -> "Samples":
+        """The rows of several logs, one after the other (each prepared on its own)."""
+        cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in
+               ("t", "theta", "dtheta", "ddtheta", "y", "sign", "use")}
+        run = np.concatenate([np.full(len(p.t), k) for k, p in enumerate(parts)])
+        return Samples(**cat, run=run, runs=tuple(r for p in parts for r in p.runs), cutoff=parts[0].cutoff)
 
 
 def drive_constants(chain: Chain) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -88,14 +121,33 @@ def differentiate(x: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     return d1, d2
 
 
-def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF) -> Samples:
-    """The regression's samples of ``log`` (module docstring). DataError for a cut-off that is
-    not below the log's Nyquist frequency, or too few rows left."""
+def stretches(keep: np.ndarray, minimum: int) -> list[tuple[int, int]]:
+    """The maximal runs [a, b) of True in ``keep`` (1-D) that are at least ``minimum`` long."""
+    edges = np.diff(np.concatenate([[0], keep.astype(np.int8), [0]]))
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    return [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= minimum]
+
+
+def _filter(sos, x: np.ndarray, edge: int) -> np.ndarray:
+    """x filtered forwards and backwards along axis 0, oddly extended (long enough for its own
+    transient to decay)."""
+    return sosfiltfilt(sos, x, axis=0, padlen=min(edge * 3, len(x) - 1))
+
+
+def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = None) -> Samples:
+    """The regression's samples of ``log`` (module docstring), only from what ``mask`` keeps
+    (derive.identify.exclude; default: every sample): each stretch of kept samples is
+    filtered and differentiated on its own, each joint's torque on each stretch of its kept
+    torques, and rows within 2 / f_c of a stretch's ends are not used. DataError for a
+    cut-off that is not below the log's Nyquist frequency."""
     check_drives(log, chain)
     fs = log.rate
     if not (math.isfinite(cutoff) and 0 < cutoff < 0.5 * fs):
+        hint = (f"; the sample interval is {1 / fs:.4g} s: a time column t in milliseconds? (t is in seconds)"
+                if 1 / fs >= 0.05 else "")
         raise DataError(f"--cutoff {cutoff:g} Hz: expected a frequency > 0 below the log's Nyquist frequency "
-                        f"{0.5 * fs:g} Hz (sample rate {fs:g} Hz)")
+                        f"{0.5 * fs:g} Hz (sample rate {fs:g} Hz){hint}")
+    mask = mask if mask is not None else Mask.everything(log)
     h = 1.0 / fs
     sos = butter(ORDER, cutoff, fs=fs, output="sos")
     edge = max(3, math.ceil(2 * fs / cutoff))
@@ -103,21 +155,38 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF) -> Samples:
     if log.samples <= 2 * edge + 1:
         raise DataError(f"{log.source}: {log.samples} samples: expected more than {2 * edge + 1} (the filter's "
                         f"transients, 2 / f_c = {2 / cutoff:g} s at either end, are dropped)")
-    pad = min(edge * 3, log.samples - 1)    # odd extension, long enough for its own transient to decay
-    theta = sosfiltfilt(sos, log.theta, axis=0, padlen=pad)
-    signal = sosfiltfilt(sos, log.signal, axis=0, padlen=pad)
-    if log.dtheta is not None:
-        dtheta = sosfiltfilt(sos, log.dtheta, axis=0, padlen=pad)
-        ddtheta = differentiate(dtheta, h)[0]
-    else:
-        dtheta, ddtheta = differentiate(theta, h)
     B, emf, kt = drive_constants(chain)
-    if log.family == "u":
-        y = signal * B
-    else:
-        y = (signal * kt if log.family == "current" else signal) + emf * dtheta
-    sign = sosfiltfilt(sos, np.sign(dtheta), axis=0, padlen=pad)   # a step, smeared as the torque's is
-    rows = slice(edge, log.samples - edge, step)
-    return Samples(t=log.t[rows], theta=theta[rows], dtheta=dtheta[rows], ddtheta=ddtheta[rows], y=y[rows],
-                   sign=sign[rows],
-                   cutoff=cutoff, rate=fs, decimation=step, edge=edge)
+    N, n = log.signal.shape
+    theta, dtheta, ddtheta = (np.zeros((N, n)) for _ in range(3))
+    y, sign = np.zeros((N, n)), np.zeros((N, n))
+    use = np.zeros((N, n), bool)
+    rows = np.zeros(N, bool)
+    parts = stretches(mask.sample, 2 * edge + 2)
+    for a, b in parts:
+        theta[a:b] = _filter(sos, log.theta[a:b], edge)
+        if log.dtheta is not None:
+            dtheta[a:b] = _filter(sos, log.dtheta[a:b], edge)
+            ddtheta[a:b] = differentiate(dtheta[a:b], h)[0]
+        else:
+            dtheta[a:b], ddtheta[a:b] = differentiate(theta[a:b], h)
+        rows[a + edge:b - edge] = True
+        for j in range(n):
+            for c, d in stretches(mask.torque[a:b, j], 2 * edge + 2):
+                c, d = a + c, a + d
+                signal = _filter(sos, log.signal[c:d, j], edge)
+                if log.family == "u":
+                    y[c:d, j] = signal * B[j]
+                else:
+                    y[c:d, j] = (signal * kt[j] if log.family == "current" else signal) + emf[j] * dtheta[c:d, j]
+                sign[c:d, j] = _filter(sos, np.sign(dtheta[c:d, j]), edge)   # a step, smeared as the torque's
+                use[c + edge:d - edge, j] = True
+    keep = np.zeros(N, bool)
+    for a, b in parts:                       # every r-th row of each stretch, after its transient
+        keep[a + edge:b - edge:step] = True
+    keep &= rows
+    use &= keep[:, None]
+    keep &= use.any(axis=1)
+    run = Run(source=log.source, rate=fs, samples=N, decimation=step, edge=edge, stretches=len(parts),
+              rows=int(keep.sum()), equations=int(use.sum()), removed=dict(mask.removed))
+    return Samples(t=log.t[keep], theta=theta[keep], dtheta=dtheta[keep], ddtheta=ddtheta[keep], y=y[keep],
+                   sign=sign[keep], use=use[keep], run=np.zeros(int(keep.sum()), int), runs=(run,), cutoff=cutoff)

@@ -132,7 +132,7 @@ def test_noisy_base_parameters_within_3_standard_deviations(which, request):
     worst = int(np.argmax(np.abs(z)))
     assert np.all(np.abs(z) <= 3), f"{idn.names[worst]}: {z[worst]:+.2f} standard deviations off"
     # the noise is estimated: white noise of sigma through the filter leaves sigma sqrt(2 f_c / f_s) roughly
-    expected = noise * np.sqrt(2 * idn.samples.cutoff / idn.samples.rate)
+    expected = noise * np.sqrt(2 * idn.samples.cutoff / idn.samples.runs[0].rate)
     assert np.all(np.abs(idn.ls.sigma / expected - 1) < 0.3), idn.ls.sigma
     assert np.all(np.array(idn.cons.min_eigenvalues) >= 0)
 
@@ -189,7 +189,7 @@ def test_cli_identify_writes_a_consistent_arm_file_and_report(ur5, tmp_path, cap
     assert arm.n == 6
     report = json.loads((out.parent / "ur5_identified_report" / "identification.json").read_text())
     assert report["consistent"]["status"].startswith("optimal")
-    assert min(report["consistent"]["lmi_min_eigenvalues"]) >= 0
+    assert min(report["consistent"]["lmi_min_eigenvalues_scaled"]) >= 0
     assert {p.name for p in (out.parent / "ur5_identified_report").iterdir()} == {
         "MANIFEST.json", "identification.json", "identification.md", "torques.png", "parameters.png"}
     printed = capsys.readouterr().out

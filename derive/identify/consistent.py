@@ -33,7 +33,8 @@ from derive.errors import DataError
 from derive.identify.estimate import LeastSquares
 from derive.identify.prior import MARGIN, Model
 
-TOLERANCE = 1e-9          # Clarabel's gap (absolute and relative) and feasibility tolerances
+TOLERANCE = 1e-8          # Clarabel's gap (absolute and relative) and feasibility tolerances (its defaults)
+DATA_CAP = 1e6            # the largest singular value of the data term in the prior-scaled x
 MAX_ITER = 400
 
 STATUS = {
@@ -80,6 +81,9 @@ def data_matrix(ls: LeastSquares, K: np.ndarray, model: Model) -> tuple[np.ndarr
     free = model.S > 0
     A = ls.R @ K @ model.F[:, free] * model.S[free][None, :]
     e = ls.qty - ls.R @ K @ (model.F @ model.z0 + model.g)
+    top = float(np.linalg.norm(A, 2)) if A.size else 0.0
+    if top > DATA_CAP:
+        A, e = A * (DATA_CAP / top), e * (DATA_CAP / top)
     return A, e
 
 
@@ -89,9 +93,11 @@ def posterior_share(ls: LeastSquares, K: np.ndarray, model: Model) -> np.ndarray
     A, _ = data_matrix(ls, K, model)
     free = model.S > 0
     out = np.full(len(model.z0), np.nan)
-    C = np.linalg.inv(A.T @ A + np.eye(A.shape[1]))
-    out[free] = 1.0 - np.clip(np.diag(C), 0.0, 1.0)
-    return out
+    _, sv, Vt = np.linalg.svd(A, full_matrices=True)
+    s2 = np.zeros(Vt.shape[0])
+    s2[:len(sv)] = sv ** 2
+    out[free] = 1.0 - ((Vt.T ** 2) / (1.0 + s2)[None, :]).sum(axis=1)     # 1 - diag((A^T A + 1)^-1)
+    return np.clip(out, 0.0, 1.0)
 
 
 def consistent(ls: LeastSquares, K: np.ndarray, model: Model) -> Consistent:

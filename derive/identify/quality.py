@@ -158,20 +158,23 @@ def _bodies(idn: Identification) -> list[Finding]:
     n = idn.reg.n
     for i in range(n):
         prior, got = idn.phi0[10 * i: 10 * i + 10], idn.cons.phi[10 * i: 10 * i + 10]
-        share = idn.share[[k for k, b in enumerate(idn.model.body) if b == i + 1]]
-        seen = float(np.nanmax(share)) if share.size else 0.0
+        idx = [k for k, b in enumerate(idn.model.body) if b == i + 1]     # m first; the inertia entries last
+        shares = (idn.share[idx[:1]], idn.share[idx[4:] if len(idx) == 10 else idx[2:]])
         name = f"body {i + 1} (moved by '{idn.arm.chain.joints[i].name}')"
-        for what, a, b, unit in (("mass", prior[0], got[0], "kg"),
-                                 ("inertia about its centre of mass (trace)", _central(prior), _central(got),
-                                  "kg m^2")):
+        for what, a, b, unit, share in (("mass", prior[0], got[0], "kg", shares[0]),
+                                        ("inertia about its centre of mass (trace)", _central(prior), _central(got),
+                                         "kg m^2", shares[1])):
+            seen = float(np.nanmax(share)) if share.size and np.isfinite(share).any() else 0.0
             if a <= 0 or not math.isfinite(b):
                 continue
             ratio = b / a
             if ratio > PLAUSIBLE or ratio < 1 / PLAUSIBLE:
-                why = ("the data sees it (a share of " f"{seen:.2f} of what is known of the body): the log may not be "
-                       "the joint torque, or not in SI units" if seen >= 0.5 else
-                       f"the data hardly sees it (share {seen:.2f}): the physical-consistency constraints moved it; "
-                       "a smaller --prior-uncertainty holds it nearer the file")
+                why = (f"the data determines it (a share of {seen:.2f} of what is known of it): the logged torque "
+                       "may not be the whole joint torque (a drive that compensates gravity), or not in SI units"
+                       if seen >= 0.5 else
+                       f"the data sees it only in combination with other parameters (a share of {seen:.2f} of what "
+                       "is known of it), whose values it moved it with: the logged torque may not be the whole "
+                       "joint torque; a smaller --prior-uncertainty holds it nearer the file")
                 out.append(Finding("warning", "plausible bodies", f"{name}: identified {what} {b:.4g} {unit}, "
                                    f"{ratio:.3g} x the arm file's {a:.4g} {unit} (more than {PLAUSIBLE:g} x off); {why}"))
     return out

@@ -48,7 +48,7 @@ RANGE_SLACK = 0.1          # of a joint's range (and 0.1 rad) beyond it
 SPEED_FACTOR = 5.0         # x the joint's velocity limit
 ZERO_SHARE = 0.01          # of a joint's kept torque values exactly 0
 PLAUSIBLE = 3.0            # x off the arm file's mass or inertia
-UNITS = "degrees written as radians (or a time column in milliseconds)"
+UNITS = "degrees written as radians, or a time column in milliseconds"
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,8 @@ def findings(idn: Identification) -> list[Finding]:
                            f"standard deviation above {MAX_RELATIVE_STD:.0f} % (the largest: {idn.names[worst]} "
                            f"{rel[worst]:.3g} %): the logged motion hardly excites them, so their written values "
                            "come from the prior (the report's tables; a richer motion: derive excite)"))
-    out += _units(idn) + _zeros(idn) + _bodies(idn)
+    units = _units(idn)
+    out += units + _zeros(idn) + _bodies(idn, bool(units))
     for j, why in sorted(idn.friction_refused.items()):
         out.append(Finding("note", "Coulomb friction", f"fc{j} is not identified (held at 0): {why}; --force "
                            "identifies it anyway"))
@@ -104,10 +105,11 @@ def findings(idn: Identification) -> list[Finding]:
 
 
 def _units(idn: Identification) -> list[Finding]:
-    """Angles beyond a joint's range, speeds far above its limit: a log in degrees."""
-    out = []
+    """Angles beyond a joint's range, speeds far above its limit: a log in degrees (one
+    finding each, naming every joint)."""
     s, arm = idn.samples, idn.arm
     speeds = arm.controller.max_joint_speed or ()
+    angles, fast = [], []
     for j, joint in enumerate(arm.chain.joints):
         rows = s.use[:, j]
         if not rows.any() or not joint.type.rotates:
@@ -118,17 +120,22 @@ def _units(idn: Identification) -> list[Finding]:
             slack = RANGE_SLACK * float(hi - lo) + 0.1
             top, bottom = float(q.max()), float(q.min())
             if top > float(hi) + slack or bottom < float(lo) - slack:
-                out.append(Finding("warning", "angles out of range", f"joint {j + 1}: angles from {bottom:.4g} to "
-                                   f"{top:.4g} rad in the log, its range is {float(lo):.4g} ... {float(hi):.4g} rad "
-                                   "(theta must be in rad): degrees written as radians?"))
+                angles.append(f"joint {j + 1} from {bottom:.4g} to {top:.4g} rad (its range {float(lo):.4g} ... "
+                              f"{float(hi):.4g})")
         limits = [float(v) for v in (joint.limits.velocity, speeds[j] if j < len(speeds) else None)
                   if v is not None and v > 0]
         if limits:
-            fastest = float(np.abs(s.dtheta[rows, j]).max())
-            if fastest > SPEED_FACTOR * min(limits):
-                out.append(Finding("warning", "speeds", f"joint {j + 1}: speeds up to {fastest:.4g} rad/s in the log, "
-                                   f"{fastest / min(limits):.0f} x its velocity limit {min(limits):.4g} rad/s: degrees "
-                                   "written as radians (or rpm, or a time column in other units)?"))
+            top = float(np.abs(s.dtheta[rows, j]).max())
+            if top > SPEED_FACTOR * min(limits):
+                fast.append(f"joint {j + 1} up to {top:.4g} rad/s ({top / min(limits):.0f} x its limit "
+                            f"{min(limits):.4g})")
+    out = []
+    if angles:
+        out.append(Finding("warning", "angles out of range", "angles beyond the joint's range in the log: "
+                           + "; ".join(angles) + ": degrees written as radians? (theta must be in rad)"))
+    if fast:
+        out.append(Finding("warning", "speeds", f"speeds above {SPEED_FACTOR:g} x the joint's velocity limit in the "
+                           "log: " + "; ".join(fast) + ": degrees written as radians (or rpm)?"))
     return out
 
 
@@ -151,32 +158,37 @@ def _zeros(idn: Identification) -> list[Finding]:
     return out
 
 
-def _bodies(idn: Identification) -> list[Finding]:
+def _bodies(idn: Identification, units: bool) -> list[Finding]:
     """Each body whose identified mass or inertia about its centre of mass is PLAUSIBLE x off
-    the arm file's, named, with whether the data sees it."""
+    the arm file's, named, with whether the data determines it (``units``: a unit finding
+    explains it)."""
     out = []
-    n = idn.reg.n
-    for i in range(n):
+    for i in range(idn.reg.n):
         prior, got = idn.phi0[10 * i: 10 * i + 10], idn.cons.phi[10 * i: 10 * i + 10]
         idx = [k for k, b in enumerate(idn.model.body) if b == i + 1]     # m first; the inertia entries last
         shares = (idn.share[idx[:1]], idn.share[idx[4:] if len(idx) == 10 else idx[2:]])
-        name = f"body {i + 1} (moved by '{idn.arm.chain.joints[i].name}')"
+        parts, seen = [], []
         for what, a, b, unit, share in (("mass", prior[0], got[0], "kg", shares[0]),
                                         ("inertia about its centre of mass (trace)", _central(prior), _central(got),
                                          "kg m^2", shares[1])):
-            seen = float(np.nanmax(share)) if share.size and np.isfinite(share).any() else 0.0
-            if a <= 0 or not math.isfinite(b):
+            if a <= 0 or not math.isfinite(b) or 1 / PLAUSIBLE <= b / a <= PLAUSIBLE:
                 continue
-            ratio = b / a
-            if ratio > PLAUSIBLE or ratio < 1 / PLAUSIBLE:
-                why = (f"the data determines it (a share of {seen:.2f} of what is known of it): the logged torque "
-                       "may not be the whole joint torque (a drive that compensates gravity), or not in SI units"
-                       if seen >= 0.5 else
-                       f"the data sees it only in combination with other parameters (a share of {seen:.2f} of what "
-                       "is known of it), whose values it moved it with: the logged torque may not be the whole "
-                       "joint torque; a smaller --prior-uncertainty holds it nearer the file")
-                out.append(Finding("warning", "plausible bodies", f"{name}: identified {what} {b:.4g} {unit}, "
-                                   f"{ratio:.3g} x the arm file's {a:.4g} {unit} (more than {PLAUSIBLE:g} x off); {why}"))
+            parts.append(f"{what} {b:.4g} {unit}, {b / a:.3g} x the arm file's {a:.4g}")
+            seen.append(float(np.nanmax(share)) if share.size and np.isfinite(share).any() else 0.0)
+        if not parts:
+            continue
+        if units:
+            why = "the log's units (above) explain it"
+        elif max(seen) >= 0.5:
+            why = (f"the data determines it (a share of {max(seen):.2f} of what is known of it): the logged torque may "
+                   "not be the whole joint torque (a drive that compensates gravity), or not in SI units")
+        else:
+            why = (f"the data sees it only in combination with other parameters (a share of {max(seen):.2f} of what is "
+                   "known of it) and moved it with them: the logged torque may not be the whole joint torque, or "
+                   "the file leaves out a load (a payload, a tool); a smaller --prior-uncertainty holds it nearer "
+                   "the file")
+        out.append(Finding("warning", "plausible bodies", f"body {i + 1} (moved by '{idn.arm.chain.joints[i].name}'): "
+                           f"identified " + " and ".join(parts) + f" (more than {PLAUSIBLE:g} x off); {why}"))
     return out
 
 

@@ -22,6 +22,7 @@ point mass vs the rest           <= 20 x the rest of the arm's mass           g 
 centre of mass, point mass       -l <= com, distance <= l (l: its link)       a wrong link, mm vs m
 link / point-mass inertia        <= m l^2 about its centre (l: its link)      kg cm^2 written as kg m^2
 rotor inertia                    Jm <= 0.1 kg m^2                             kg cm^2 or g cm^2 as kg m^2
+drive inertia (torque, gear 1)   Jm <= 0.1 kg m^2 x 100^2 = 1000 kg m^2       kg cm^2 or g cm^2 as kg m^2
 resistance                       1 mOhm <= R <= 1 kOhm                        mOhm written as Ohm
 gear ratio                       1/100 <= gear ratio <= 10000                 a ratio of teeth or speeds
 torque vs voltage constant       1/2 <= Kt / Kv <= 2 (equal in SI units)      Kv in V/krpm or rpm/V
@@ -32,6 +33,11 @@ prismatic joint travel           |lower|, |upper| <= 10 m                     mm
 joint velocity limit             <= 50 rad/s (10 m/s prismatic)               deg/s or rpm as rad/s
 controller.max_joint_speed       <= 50 rad/s                                  deg/s or rpm as rad/s
 ===============================  ===========================================  ==========================
+
+A torque-actuated motor with gear ratio 1 (what ``derive init`` writes for a URDF: u is the joint
+torque) models the drive at the joint: its ``rotor_inertia`` is the whole drive's reflected inertia
+gr^2 Jm, which ``derive identify`` writes there, 0.1-2 kg m^2 for a harmonic-drive arm such as the
+Schunk LWA 4P. Its bound is that of a 0.1 kg m^2 rotor behind a 100:1 gear.
 
 The last four are the ranges the operating-point grids cover (the observer certificate's box, the
 sample-time analysis, derive.control.grid): a range in the wrong unit would put the grids, and
@@ -56,6 +62,7 @@ MAX_LENGTH = Fraction(10)            # m: no robot arm's link, offset or reach i
 MAX_MASS = Fraction(1000)            # kg: heavier than the heaviest industrial arm's links
 MAX_PAYLOAD_RATIO = Fraction(20)     # a point mass 20 times the rest of the arm
 MAX_ROTOR_INERTIA = Fraction(1, 10)  # kg m^2: a large servo motor's rotor is about 1e-2
+MAX_DRIVE_INERTIA = MAX_ROTOR_INERTIA * 100 ** 2   # kg m^2: reflected through a 100:1 gear (torque, gear ratio 1)
 RESISTANCE = (Fraction(1, 1000), Fraction(1000))   # ohm
 GEAR_RATIO = (Fraction(1, 100), Fraction(10000))
 KT_OVER_KV = (Fraction(1, 2), Fraction(2))         # Kt [N m/A] = Kv [V s/rad] for an ideal DC motor
@@ -183,7 +190,12 @@ def _inertia(field: str, inertia: Fraction, m: Fraction, l: Fraction) -> list[Pr
 
 def _motor(motor: Motor, f: str) -> list[Problem]:
     out: list[Problem] = []
-    if motor.rotor_inertia > MAX_ROTOR_INERTIA:
+    drive = motor.actuation is Actuation.TORQUE and motor.gear_ratio == 1
+    if drive and motor.rotor_inertia > MAX_DRIVE_INERTIA:
+        out.append(Problem(f"{f}.rotor_inertia", f"at most {fmt(MAX_DRIVE_INERTIA)} kg m^2 for a drive's reflected "
+                           "inertia (torque actuation, gear ratio 1; kg cm^2 or g cm^2 written as kg m^2?)",
+                           f"{fmt(motor.rotor_inertia)} kg m^2"))
+    elif not drive and motor.rotor_inertia > MAX_ROTOR_INERTIA:
         out.append(Problem(f"{f}.rotor_inertia", f"at most {fmt(MAX_ROTOR_INERTIA)} kg m^2 for a motor's rotor "
                            "(kg cm^2 or g cm^2 written as kg m^2?)", f"{fmt(motor.rotor_inertia)} kg m^2"))
     low, high = GEAR_RATIO

@@ -7,7 +7,11 @@ or ``u1..n`` (the input u of eq. 12: voltage [V], or motor torque for torque-act
 joints); optionally ``dtheta1..n`` [rad/s or m/s] (a tachometer: then the velocity is
 not differentiated from theta); optionally ``valid`` (1: the sample is used, 0: it is not;
 any other value is an error). Lines starting with ``#`` are comments. Times must
-increase, uniformly to 1 % (the filter is designed for one sample rate).
+increase, uniformly to 1 % (the filter is designed for one sample rate), except at a
+*join*: an interval of GAP median intervals or more (a gap between two runs), or a step of
+an angle larger than JUMP and JUMP_RATIO times the steps around it (two runs appended: an
+arm does not move 0.05 rad in one sample). Each stretch between joins is filtered on its
+own (derive.identify.signals), and the report counts the joins.
 
 :func:`log_paths` expands the LOG arguments of derive identify (a shell-style glob given as
 one argument is expanded here, sorted); every run is read on its own (:func:`read_log`)
@@ -29,6 +33,9 @@ from derive.errors import DataError
 
 FAMILIES = ("tau", "current", "u")
 JITTER = 0.01          # the largest deviation of a sample interval from the median, relative
+GAP = 1.5              # an interval this many median intervals long or longer is a join (a gap between runs)
+JUMP = 0.05            # rad or m in one sample, and JUMP_RATIO x the neighbouring steps: a join (runs appended)
+JUMP_RATIO = 20.0
 MAX_BYTES = 4 << 30    # 4 GiB: a log is read whole
 _NAME = re.compile(r"([a-z_]+?)(\d+)\Z")
 
@@ -37,7 +44,8 @@ _NAME = re.compile(r"([a-z_]+?)(\d+)\Z")
 class Log:
     """A validated log: t (N,), theta (N x n), dtheta (N x n or None), the measured
     signal (N x n) of kind ``family`` (FAMILIES), the file it came from, and the ``valid``
-    column (N, bool; None: the log has none, every sample is valid)."""
+    column (N, bool; None: the log has none, every sample is valid), the samples at which a
+    new stretch starts after a join (module docstring) and how many joins were gaps in time."""
 
     t: np.ndarray
     theta: np.ndarray
@@ -46,6 +54,8 @@ class Log:
     family: str
     source: str
     valid: np.ndarray | None = None
+    joins: tuple[int, ...] = ()
+    gaps: int = 0
 
     @property
     def samples(self) -> int:
@@ -135,12 +145,17 @@ def read_log(path: str | Path, n: int) -> Log:
     if (step <= 0).any():
         r = int(np.argmax(step <= 0)) + 1
         what = "repeated" if step[r - 1] == 0 else "unsorted"
+        back = float(t[r - 1] - t[r]) > 2 * float(np.median(np.abs(step)))
         raise DataError(f"{where}: line {rows[r]}: expected times that increase, got t = {float(t[r])!r} after "
-                        f"t = {float(t[r - 1])!r} on line {rows[r - 1]} ({what} times)")
+                        f"t = {float(t[r - 1])!r} on line {rows[r - 1]} ({what} times)"
+                        + ("; a run appended with its own times? give each run as its own LOG" if back else ""))
+    gaps = np.zeros(len(step), bool)
     if len(t) > 2:
         median = float(np.median(step))
-        worst = int(np.argmax(np.abs(step - median)))
-        if abs(step[worst] - median) > JITTER * median:
+        gaps = step >= GAP * median
+        off = np.where(gaps, 0.0, np.abs(step - median))
+        worst = int(np.argmax(off))
+        if off[worst] > JITTER * median:
             raise DataError(f"{where}: line {rows[worst + 1]}: expected uniform sample times (within 1 % of the "
                             f"median interval {median:.6g} s), got an interval of {step[worst]:.6g} s; resample "
                             "the log onto a uniform grid")
@@ -155,8 +170,21 @@ def read_log(path: str | Path, n: int) -> Log:
                             f"{'s' if bad.sum() > 1 else ''})")
         valid = flag == 1
     family = next(f for f in FAMILIES if f in cols)
-    return Log(t=t, theta=data[:, cols["theta"]], dtheta=data[:, cols["dtheta"]] if "dtheta" in cols else None,
-               signal=data[:, cols[family]], family=family, source=where, valid=valid)
+    theta = data[:, cols["theta"]]
+    joins = np.flatnonzero(gaps | jumps(theta)) + 1
+    return Log(t=t, theta=theta, dtheta=data[:, cols["dtheta"]] if "dtheta" in cols else None,
+               signal=data[:, cols[family]], family=family, source=where, valid=valid,
+               joins=tuple(int(k) for k in joins), gaps=int(gaps.sum()))
+
+
+def jumps(theta: np.ndarray) -> np.ndarray:
+    """(N - 1,) bool: the steps theta[k] -> theta[k + 1] at which some joint jumps (module docstring)."""
+    d = np.abs(np.diff(theta, axis=0))
+    if len(d) < 3:
+        return np.zeros(len(d), bool)
+    pad = np.pad(d, ((2, 2), (0, 0)))
+    around = np.maximum.reduce([pad[0:-4], pad[1:-3], pad[3:-1], pad[4:]])
+    return ((d > JUMP) & (d > JUMP_RATIO * around)).any(axis=1)
 
 
 def log_paths(arguments: list[str | Path]) -> list[Path]:

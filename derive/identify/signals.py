@@ -44,7 +44,8 @@ class Run:
     """How one log became rows: its file, sample rate [Hz], samples, decimation r, rows dropped
     at each end of every stretch (the filter's transients), the stretches filtered on their
     own, the rows and torque equations it gives, what each exclusion rule removed
-    (derive.identify.exclude.Mask.removed)."""
+    (derive.identify.exclude.Mask.removed), the joins found in it (derive.identify.log) and
+    how many of them were gaps in time."""
 
     source: str
     rate: float
@@ -55,6 +56,8 @@ class Run:
     rows: int
     equations: int
     removed: dict
+    joins: int = 0
+    gaps: int = 0
 
 
 @dataclass(frozen=True)
@@ -128,6 +131,12 @@ def stretches(keep: np.ndarray, minimum: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= minimum]
 
 
+def _split(N: int, joins: tuple[int, ...]) -> list[tuple[int, int]]:
+    """[a, b) between consecutive joins (the log's runs)."""
+    cuts = [0, *joins, N]
+    return [(a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+
+
 def _filter(sos, x: np.ndarray, edge: int) -> np.ndarray:
     """x filtered forwards and backwards along axis 0, oddly extended (long enough for its own
     transient to decay)."""
@@ -161,7 +170,7 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
     y, sign = np.zeros((N, n)), np.zeros((N, n))
     use = np.zeros((N, n), bool)
     rows = np.zeros(N, bool)
-    parts = stretches(mask.sample, 2 * edge + 2)
+    parts = [(a + c, a + d) for a, b in _split(N, log.joins) for c, d in stretches(mask.sample[a:b], 2 * edge + 2)]
     for a, b in parts:
         theta[a:b] = _filter(sos, log.theta[a:b], edge)
         if log.dtheta is not None:
@@ -187,6 +196,7 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
     use &= keep[:, None]
     keep &= use.any(axis=1)
     run = Run(source=log.source, rate=fs, samples=N, decimation=step, edge=edge, stretches=len(parts),
-              rows=int(keep.sum()), equations=int(use.sum()), removed=dict(mask.removed))
+              rows=int(keep.sum()), equations=int(use.sum()), removed=dict(mask.removed), joins=len(log.joins),
+              gaps=log.gaps)
     return Samples(t=log.t[keep], theta=theta[keep], dtheta=dtheta[keep], ddtheta=ddtheta[keep], y=y[keep],
                    sign=sign[keep], use=use[keep], run=np.zeros(int(keep.sum()), int), runs=(run,), cutoff=cutoff)

@@ -8,7 +8,7 @@ rule           removes                                                          
 =============  ===============================================================  ===============
 ``valid``      the samples whose ``valid`` column is 0 (derive.identify.log)    whole samples
 ``ends=MS``    the first and the last MS milliseconds of each log (run)        whole samples
-``brake``      the samples where every joint's torque is exactly 0 (brakes      the torques
+``brake``      the samples where every joint's torque is exactly 0 (brakes      whole samples
                holding the arm, a drive switched off)
 ``zeros``      a joint's torque that is exactly 0 (a dropout: 1.32, 0, 2.34     that torque
                N m; a joint whose drive is off while the others move)
@@ -19,8 +19,9 @@ rule           removes                                                          
 =============  ===============================================================  ===============
 
 A removed sample splits its log: the motion is filtered and differentiated on each
-stretch of kept samples on its own, a removed torque splits that joint's torque alike
-(derive.identify.signals), so that no filter reaches across a gap. Rules apply in the
+stretch of kept samples on its own (a brake phase or a flagged sample may hold anything,
+and the arm stops abruptly when the brakes close), a removed torque splits that joint's
+torque alike (derive.identify.signals), so that no filter reaches across a gap. Rules apply in the
 order of the table; each counts what the earlier ones left.
 """
 from __future__ import annotations
@@ -29,11 +30,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
 from derive.errors import DataError
 from derive.identify.log import Log
-from derive.model.chain import Actuation, Chain
+from derive.model.chain import Actuation
 
 RULES = ("brake", "zeros", "saturated", "ends")
 SATURATION = 1e-3    # a torque within 0.1 % of the limit is at it
@@ -99,27 +99,27 @@ def parse_exclude(values: list[str] | None) -> Exclusion:
     return Exclusion(**chosen)
 
 
-def limits(log: Log, chain: Chain) -> np.ndarray:
+def limits(log: Log, motors) -> np.ndarray:
     """Per joint the bound on |signal| at which it saturates (inf: none known): ``u`` the motor's
     input limit, ``tau`` gear ratio x torque_limit of a torque-actuated joint; none for currents."""
-    values = chain.values()
-    out = np.full(chain.n, math.inf)
-    for j, a in enumerate(chain.actuators):
-        torque = a.actuation is Actuation.TORQUE
+    out = np.full(len(motors), math.inf)
+    for j, motor in enumerate(motors):
+        torque = motor.actuation is Actuation.TORQUE
         if log.family == "u":
-            limit = getattr(a, "torque_limit" if torque else "voltage_limit", None)
-        elif log.family == "tau" and torque and getattr(a, "torque_limit", None) is not None:
-            limit = a.gear_ratio * a.torque_limit
+            limit = motor.input_limit
+        elif log.family == "tau" and torque and motor.torque_limit is not None:
+            limit = motor.gear_ratio * motor.torque_limit
         else:
             limit = None
         if limit is not None:
-            out[j] = float(sp.sympify(limit).xreplace(values))
+            out[j] = float(limit)
     return out
 
 
-def mask(log: Log, rules: Exclusion, chain: Chain) -> Mask:
-    """The samples and torques of ``log`` that ``rules`` (and its valid column) keep. DataError
-    for ``saturated`` on a log none of whose joints has a known limit."""
+def mask(log: Log, rules: Exclusion, motors) -> Mask:
+    """The samples and torques of ``log`` that ``rules`` (and its valid column) keep (``motors``:
+    the arm's, derive.model.actuators.Motor, for their limits). DataError for ``saturated`` on
+    a log none of whose joints has a known limit."""
     n = log.signal.shape[1]
     sample = np.ones(log.samples, bool) if log.valid is None else log.valid.copy()
     removed: dict = {}
@@ -130,18 +130,18 @@ def mask(log: Log, rules: Exclusion, chain: Chain) -> Mask:
         span = rules.ends_ms / 1000.0
         sample &= (log.t - log.t[0] >= span) & (log.t[-1] - log.t >= span)
         removed["ends"] = int((before & ~sample).sum())
-    torque = np.repeat(sample[:, None], n, axis=1)
     if rules.brake:
         still = (log.signal == 0).all(axis=1) & sample
-        torque[still] = False
+        sample &= ~still
         removed["brake"] = int(still.sum())
+    torque = np.repeat(sample[:, None], n, axis=1)
     if rules.zeros:
         hit = (log.signal == 0) & torque
         torque &= ~hit
         removed["zeros"] = int(hit.sum())
         removed["zeros_per_joint"] = [int(x) for x in hit.sum(axis=0)]
     if rules.saturated:
-        bound = limits(log, chain)
+        bound = limits(log, motors)
         if not np.isfinite(bound).any():
             what = {"tau": "a torque-actuated motor's torque_limit", "u": "the motors' torque_limit or voltage_limit",
                     "current": "a current limit, which the arm file does not hold"}[log.family]

@@ -171,7 +171,10 @@ def read_log(path: str | Path, n: int) -> Log:
         valid = flag == 1
     family = next(f for f in FAMILIES if f in cols)
     theta = data[:, cols["theta"]]
-    joins = np.flatnonzero(gaps | jumps(theta)) + 1
+    jumped = jumps(theta)
+    if valid is not None:                   # a flagged sample may hold anything
+        jumped &= valid[:-1] & valid[1:]
+    joins = np.flatnonzero(gaps | jumped) + 1
     return Log(t=t, theta=theta, dtheta=data[:, cols["dtheta"]] if "dtheta" in cols else None,
                signal=data[:, cols[family]], family=family, source=where, valid=valid,
                joins=tuple(int(k) for k in joins), gaps=int(gaps.sum()))

@@ -192,7 +192,7 @@ def _identify(arm: Arm, logs: list[Log], cutoff: float, coulomb: bool, reg: Regr
     if len(logs) == 1:
         minimum_samples(logs[0], reg.p, n)
     for log in logs:
-        parts.append(prepare(log, arm.chain, cutoff, mask(log, rules, arm.chain)))
+        parts.append(prepare(log, arm.chain, cutoff, mask(log, rules, arm.motors)))
     s = Samples.stack(parts)
     seconds["filter"] = time.perf_counter() - mark
     refused = one_signed(s, n) if coulomb else {}

@@ -5,12 +5,24 @@ Theta (and theta' when the log has it) and the measured signal pass the same low
 filter forwards and backwards: a Butterworth filter of order 4 (scipy.signal.butter,
 second-order sections, scipy.signal.sosfiltfilt), so motion and torque keep the same
 attenuation and no delay. theta' and theta'' are central differences of fourth order of
-the filtered signals (exact for polynomials of degree 4). The rows within 2 / f_c of
-either end are dropped (the filter's transients), then every r-th row is kept,
+the filtered signals (exact for polynomials of degree 4). Each end is extended, for the
+filter, by the cubic fitted to its last 2 / f_c (a stretch may end mid-motion, where an
+odd reflection's kink in the second derivative would leave a transient of 1e-5 of the
+signal beyond 2 / f_c; the cubic's, 1e-7), the rows within 2 / f_c of either end are
+dropped (the filter's transients), then every r-th row is kept,
 r = floor(f_s / (2 f_c)): the filtered noise then lies below the new Nyquist frequency
 and consecutive rows are close to uncorrelated, as the standard deviations of least
 squares assume (parallel filtering and decimation: M. Gautier, "Dynamic identification
 of robots with power model", ICRA 1997; J. Swevers et al. 1997).
+
+A log is cut into stretches at its joins (derive.identify.log) and at the samples the
+exclusion rules remove whole (derive.identify.exclude); each stretch is filtered and
+differentiated on its own, its ends dropped as above. Within a stretch, a joint's torque
+that a rule removed (a dropout, a saturated value) splits that joint's torque alike,
+unless the gap is short (at most f_s / (FILL f_c) samples, a tenth of the cut-off's
+period): then the filter runs across it, the gap bridged by a cubic spline through the
+kept torques (for a signal below the cut-off, a far smaller error than the noise), and
+only the gap's own rows are not used.
 
 The measured signal becomes the torque J theta'' + G of eq. 12, which includes the
 motors' back-EMF damping gr^2 Kt Kv / Ra theta' of voltage-driven joints:
@@ -27,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
+from scipy.interpolate import CubicSpline
 from scipy.signal import butter, sosfiltfilt
 
 from derive.errors import DataError
@@ -37,6 +50,8 @@ from derive.model.actuators import terms
 from derive.model.chain import Actuation, Chain
 
 ORDER = 4         # of the Butterworth filter (CUTOFF: derive.identify, the default cut-off)
+PAD_DEGREE = 3    # each stretch is extended by the cubic of its last 2 / f_c (not reflected: a cut mid-motion)
+FILL = 10         # a torque gap of at most f_s / (FILL f_c) samples (a tenth of the cut-off's period) is bridged
 
 
 @dataclass(frozen=True)
@@ -131,6 +146,16 @@ def stretches(keep: np.ndarray, minimum: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= minimum]
 
 
+def short_gaps(keep: np.ndarray, longest: int) -> np.ndarray:
+    """The samples of the runs of False in ``keep`` (1-D) at most ``longest`` long with True on
+    both sides (a dropout inside a stretch)."""
+    out = np.zeros(len(keep), bool)
+    for a, b in stretches(~keep, 1):
+        if b - a <= longest and a > 0 and b < len(keep):
+            out[a:b] = True
+    return out
+
+
 def _split(N: int, joins: tuple[int, ...]) -> list[tuple[int, int]]:
     """[a, b) between consecutive joins (the log's runs)."""
     cuts = [0, *joins, N]
@@ -138,9 +163,18 @@ def _split(N: int, joins: tuple[int, ...]) -> list[tuple[int, int]]:
 
 
 def _filter(sos, x: np.ndarray, edge: int) -> np.ndarray:
-    """x filtered forwards and backwards along axis 0, oddly extended (long enough for its own
-    transient to decay)."""
-    return sosfiltfilt(sos, x, axis=0, padlen=min(edge * 3, len(x) - 1))
+    """x (1-D, or 2-D along axis 0) filtered forwards and backwards, each end extended by
+    3 x ``edge`` samples of the cubic fitted to its last ``edge`` samples (module docstring)."""
+    flat = x if x.ndim == 2 else x[:, None]
+    fit = min(edge, len(flat))
+    pad = 3 * edge
+    at = np.arange(fit, dtype=float)
+    left = np.polyfit(at, flat[:fit], PAD_DEGREE)
+    right = np.polyfit(at, flat[-fit:], PAD_DEGREE)
+    before = np.array([np.polyval(c, np.arange(-pad, 0.0)) for c in left.T]).T
+    after = np.array([np.polyval(c, np.arange(fit, fit + pad, dtype=float)) for c in right.T]).T
+    out = sosfiltfilt(sos, np.vstack([before, flat, after]), axis=0, padlen=0)[pad:pad + len(flat)]
+    return out if x.ndim == 2 else out[:, 0]
 
 
 def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = None) -> Samples:
@@ -161,6 +195,7 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
     sos = butter(ORDER, cutoff, fs=fs, output="sos")
     edge = max(3, math.ceil(2 * fs / cutoff))
     step = max(1, math.floor(fs / (2 * cutoff)))
+    fill = max(1, math.floor(fs / (FILL * cutoff)))
     if log.samples <= 2 * edge + 1:
         raise DataError(f"{log.source}: {log.samples} samples: expected more than {2 * edge + 1} (the filter's "
                         f"transients, 2 / f_c = {2 / cutoff:g} s at either end, are dropped)")
@@ -180,15 +215,22 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
             dtheta[a:b], ddtheta[a:b] = differentiate(theta[a:b], h)
         rows[a + edge:b - edge] = True
         for j in range(n):
-            for c, d in stretches(mask.torque[a:b, j], 2 * edge + 2):
+            kept, raw = mask.torque[a:b, j], log.signal[a:b, j]
+            filled = short_gaps(kept, fill)
+            if filled.any():                     # a dropout: bridged for the filter, its own rows not used
+                at = np.arange(b - a)
+                raw = raw.copy()
+                raw[filled] = CubicSpline(at[kept], raw[kept])(at[filled])
+            for c, d in stretches(kept | filled, 2 * edge + 2):
                 c, d = a + c, a + d
-                signal = _filter(sos, log.signal[c:d, j], edge)
+                signal = _filter(sos, raw[c - a:d - a], edge)
                 if log.family == "u":
                     y[c:d, j] = signal * B[j]
                 else:
                     y[c:d, j] = (signal * kt[j] if log.family == "current" else signal) + emf[j] * dtheta[c:d, j]
                 sign[c:d, j] = _filter(sos, np.sign(dtheta[c:d, j]), edge)   # a step, smeared as the torque's
                 use[c + edge:d - edge, j] = True
+            use[a:b, j] &= ~filled
     keep = np.zeros(N, bool)
     for a, b in parts:                       # every r-th row of each stretch, after its transient
         keep[a + edge:b - edge:step] = True

@@ -133,8 +133,10 @@ def consistent(ls: LeastSquares, K: np.ndarray, model: Model) -> Consistent:
     except cp.error.SolverError as exc:
         raise DataError(f"the physically consistent estimate: Clarabel failed ({exc})") from None
     if problem.status not in STATUS or x.value is None:
-        raise DataError(f"the physically consistent estimate: the solver ended {problem.status} (expected a solution: "
-                        "is the arm file's prior itself physically consistent?)")
+        why = {"user_limit": f"Clarabel stopped at its limit of {MAX_ITER} iterations without a solution",
+               "infeasible": "the constraints cannot all hold (the bounds on friction and rotor inertia, each "
+                             "body physically possible)"}.get(problem.status, "no solution")
+        raise DataError(f"the physically consistent estimate: the solver ended {problem.status}: {why}")
     xs = np.zeros(len(model.z0))
     xs[free] = x.value
     zv = model.z0 + model.S * xs

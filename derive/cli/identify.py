@@ -21,9 +21,13 @@ import argparse
 import hashlib
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from derive import jsonio
 from derive.errors import DataError
+
+if TYPE_CHECKING:
+    from derive.identify.run import Identification
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -109,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary(idn, data: dict) -> str:
+def summary(idn: "Identification", data: dict) -> str:
     """The lines derive identify prints: rows, condition number, torque explained, the worst
     relative standard deviation, the solver."""
     import numpy as np

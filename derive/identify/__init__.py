@@ -7,10 +7,13 @@ Beside :mod:`derive.control` (imports flow model -> dynamics -> identify -> code
 * :mod:`derive.identify.regressor`: Y of J theta'' + G = Y pi in the base parameters pi,
   from the recursion J and the bias come from (derive generate --regressor emits it);
 * :mod:`derive.identify.excite`: the Fourier excitation trajectory (derive excite);
-* :mod:`derive.identify.log`, :mod:`derive.identify.signals`: reading, filtering and
-  differentiating a logged run;
-* :mod:`derive.identify.estimate`, :mod:`derive.identify.run`: weighted least squares and the
-  physically consistent (LMI) estimate (derive identify);
+* :mod:`derive.identify.log`, :mod:`derive.identify.exclude`, :mod:`derive.identify.signals`:
+  reading logged runs, the samples they keep (a valid column, --exclude rules, joins),
+  filtering and differentiating each stretch on its own;
+* :mod:`derive.identify.estimate`, :mod:`derive.identify.prior`, :mod:`derive.identify.consistent`,
+  :mod:`derive.identify.run`: weighted least squares, the arm file as a prior and the physically
+  consistent (LMI, maximum a posteriori) estimate (derive identify);
+* :mod:`derive.identify.quality`: the findings (warnings, refusals) on the result;
 * :mod:`derive.identify.armfile`, :mod:`derive.identify.report`: the identified arm file and
   the report.
 """

@@ -27,12 +27,14 @@ order of the table; each counts what the earlier ones left.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from derive.errors import DataError
 from derive.identify.log import Log
+from derive.model.actuators import Motor
 from derive.model.chain import Actuation
 
 RULES = ("brake", "zeros", "saturated", "ends")
@@ -99,7 +101,7 @@ def parse_exclude(values: list[str] | None) -> Exclusion:
     return Exclusion(**chosen)
 
 
-def limits(log: Log, motors) -> np.ndarray:
+def limits(log: Log, motors: Sequence[Motor]) -> np.ndarray:
     """Per joint the bound on |signal| at which it saturates (inf: none known): ``u`` the motor's
     input limit, ``tau`` gear ratio x torque_limit of a torque-actuated joint; none for currents."""
     out = np.full(len(motors), math.inf)
@@ -116,7 +118,7 @@ def limits(log: Log, motors) -> np.ndarray:
     return out
 
 
-def mask(log: Log, rules: Exclusion, motors) -> Mask:
+def mask(log: Log, rules: Exclusion, motors: Sequence[Motor]) -> Mask:
     """The samples and torques of ``log`` that ``rules`` (and its valid column) keep (``motors``:
     the arm's, derive.model.actuators.Motor, for their limits). DataError for ``saturated`` on
     a log none of whose joints has a known limit."""

@@ -71,7 +71,7 @@ def _size(m: float, trace: float, c: float, floor: float) -> float:
 
 
 def _drives(prior: np.ndarray, n: int, emf: np.ndarray, coulomb: bool, uncertainty: float, arm_mass: float,
-            reach: float, prismatic: tuple[bool, ...]):
+            reach: float, prismatic: tuple[bool, ...]) -> tuple[np.ndarray, list[tuple[int, float]], list[str]]:
     """(S, bounds (index, lower bound), names) of the drive parameters Ia (>= 0), fv (>= the
     back-EMF: the joint's viscous friction >= 0) and fc (>= 0), indices from 0."""
     S, lower = np.zeros(len(prior)), []

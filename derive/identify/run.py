@@ -117,14 +117,6 @@ def _model(arm: Arm, phi0: np.ndarray, names: tuple[str, ...], emf: np.ndarray, 
     return model
 
 
-def regression(reg: Regressor, s: Samples, friction: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(W, y, joint): the regressor stacked equation by equation over the used ones (M x p, plus a
-    Coulomb column sign(theta'_j), filtered as the torque, on joint j's rows for each j in
-    ``friction``), the torques (M) and each row's joint (M, 0-based)."""
-    W = _columns(reg, s, friction)
-    return W[s.use], s.y[s.use], np.nonzero(s.use)[1]
-
-
 def _columns(reg: Regressor, s: Samples, friction: tuple[int, ...]) -> np.ndarray:
     """The regressor at every row and joint (N x n x p'), Coulomb columns appended."""
     W = reg.evaluate(s.theta, s.dtheta, s.ddtheta)                 # N x n x p

@@ -162,7 +162,7 @@ def _split(N: int, joins: tuple[int, ...]) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
 
 
-def _filter(sos, x: np.ndarray, edge: int) -> np.ndarray:
+def _filter(sos: np.ndarray, x: np.ndarray, edge: int) -> np.ndarray:
     """x (1-D, or 2-D along axis 0) filtered forwards and backwards, each end extended by
     3 x ``edge`` samples of the cubic fitted to its last ``edge`` samples (module docstring)."""
     flat = x if x.ndim == 2 else x[:, None]

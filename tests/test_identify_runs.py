@@ -148,7 +148,7 @@ def test_ends_and_saturated_rules_remove_what_they_name(motion, tmp_path):
     removed = idn.samples.runs[0].removed
     assert removed["ends"] == 2 * 250 and removed["saturated_per_joint"][1] == 0
     assert removed["saturated"] == int((np.abs(u[250:-250, 0]) >= limit * (1 - 1e-3)).sum())
-    assert idn.samples.t.min() >= 0.25 + 0.2 - 1e-9      # the ends, then the filter's 2 / f_c
+    assert idn.samples.t.min() >= 0.25 + 0.3 - 1e-9      # the ends, then 3 / f_c at a cut (derive.identify.signals)
 
 
 # -- bad inputs: one message each, exit 2, nothing written --------------------------------------

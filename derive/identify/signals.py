@@ -5,11 +5,11 @@ Theta (and theta' when the log has it) and the measured signal pass the same low
 filter forwards and backwards: a Butterworth filter of order 4 (scipy.signal.butter,
 second-order sections, scipy.signal.sosfiltfilt), so motion and torque keep the same
 attenuation and no delay. theta' and theta'' are central differences of fourth order of
-the filtered signals (exact for polynomials of degree 4). Each end is extended, for the
-filter, by the cubic fitted to its last 2 / f_c (a stretch may end mid-motion, where an
-odd reflection's kink in the second derivative would leave a transient of 1e-5 of the
-signal beyond 2 / f_c; the cubic's, 1e-7), the rows within 2 / f_c of either end are
-dropped (the filter's transients), then every r-th row is kept,
+the filtered signals (exact for polynomials of degree 4). The rows within 2 / f_c of
+either end are dropped (the filter's transients; its odd extension is smooth where a run
+starts or ends at rest), within CUT / f_c of an end that an excluded sample made (a cut
+mid-motion, where the odd extension's kink in the second derivative leaves a transient of
+about 1e-5 of the signal at 2 / f_c and 1e-6 at 3 / f_c), then every r-th row is kept,
 r = floor(f_s / (2 f_c)): the filtered noise then lies below the new Nyquist frequency
 and consecutive rows are close to uncorrelated, as the standard deviations of least
 squares assume (parallel filtering and decimation: M. Gautier, "Dynamic identification
@@ -50,7 +50,7 @@ from derive.model.actuators import terms
 from derive.model.chain import Actuation, Chain
 
 ORDER = 4         # of the Butterworth filter (CUTOFF: derive.identify, the default cut-off)
-PAD_DEGREE = 3    # each stretch is extended by the cubic of its last 2 / f_c (not reflected: a cut mid-motion)
+CUT = 3.0         # x 1 / f_c dropped at an end made by an excluded sample (2 / f_c at a log's ends and joins)
 FILL = 10         # a torque gap of at most f_s / (FILL f_c) samples (a tenth of the cut-off's period) is bridged
 
 
@@ -163,18 +163,9 @@ def _split(N: int, joins: tuple[int, ...]) -> list[tuple[int, int]]:
 
 
 def _filter(sos: np.ndarray, x: np.ndarray, edge: int) -> np.ndarray:
-    """x (1-D, or 2-D along axis 0) filtered forwards and backwards, each end extended by
-    3 x ``edge`` samples of the cubic fitted to its last ``edge`` samples (module docstring)."""
-    flat = x if x.ndim == 2 else x[:, None]
-    fit = min(edge, len(flat))
-    pad = 3 * edge
-    at = np.arange(fit, dtype=float)
-    left = np.polyfit(at, flat[:fit], PAD_DEGREE)
-    right = np.polyfit(at, flat[-fit:], PAD_DEGREE)
-    before = np.array([np.polyval(c, np.arange(-pad, 0.0)) for c in left.T]).T
-    after = np.array([np.polyval(c, np.arange(fit, fit + pad, dtype=float)) for c in right.T]).T
-    out = sosfiltfilt(sos, np.vstack([before, flat, after]), axis=0, padlen=0)[pad:pad + len(flat)]
-    return out if x.ndim == 2 else out[:, 0]
+    """x filtered forwards and backwards along axis 0, oddly extended (long enough for its own
+    transient to decay)."""
+    return sosfiltfilt(sos, x, axis=0, padlen=min(edge * 3, len(x) - 1))
 
 
 def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = None) -> Samples:
@@ -205,7 +196,14 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
     y, sign = np.zeros((N, n)), np.zeros((N, n))
     use = np.zeros((N, n), bool)
     rows = np.zeros(N, bool)
-    parts = [(a + c, a + d) for a, b in _split(N, log.joins) for c, d in stretches(mask.sample[a:b], 2 * edge + 2)]
+    cut = max(edge, math.ceil(CUT * fs / cutoff))
+    runs = _split(N, log.joins)
+    natural = {a for a, _ in runs} | {b for _, b in runs}           # a log's ends and its joins
+    parts = [(a + c, a + d) for a, b in runs for c, d in stretches(mask.sample[a:b], 2 * edge + 2)]
+
+    def used(lo: int, hi: int) -> slice:
+        return slice(lo + (edge if lo in natural else cut), hi - (edge if hi in natural else cut))
+
     for a, b in parts:
         theta[a:b] = _filter(sos, log.theta[a:b], edge)
         if log.dtheta is not None:
@@ -213,7 +211,7 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
             ddtheta[a:b] = differentiate(dtheta[a:b], h)[0]
         else:
             dtheta[a:b], ddtheta[a:b] = differentiate(theta[a:b], h)
-        rows[a + edge:b - edge] = True
+        rows[used(a, b)] = True
         for j in range(n):
             kept, raw = mask.torque[a:b, j], log.signal[a:b, j]
             filled = short_gaps(kept, fill)
@@ -229,11 +227,12 @@ def prepare(log: Log, chain: Chain, cutoff: float = CUTOFF, mask: Mask | None = 
                 else:
                     y[c:d, j] = (signal * kt[j] if log.family == "current" else signal) + emf[j] * dtheta[c:d, j]
                 sign[c:d, j] = _filter(sos, np.sign(dtheta[c:d, j]), edge)   # a step, smeared as the torque's
-                use[c + edge:d - edge, j] = True
+                use[used(c, d), j] = True
             use[a:b, j] &= ~filled
     keep = np.zeros(N, bool)
-    for a, b in parts:                       # every r-th row of each stretch, after its transient
-        keep[a + edge:b - edge:step] = True
+    for a, b in parts:                       # every r-th row of each stretch, after its transients
+        span = used(a, b)
+        keep[span.start:span.stop:step] = True
     keep &= rows
     use &= keep[:, None]
     keep &= use.any(axis=1)

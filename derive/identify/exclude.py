@@ -71,7 +71,9 @@ class Mask:
 
     @staticmethod
     def everything(log: Log) -> "Mask":
-        return Mask(np.ones(log.samples, bool), np.ones(log.signal.shape, bool), {})
+        """Every sample of ``log`` that its valid column keeps (no rules)."""
+        sample = np.ones(log.samples, bool) if log.valid is None else log.valid.copy()
+        return Mask(sample, np.repeat(sample[:, None], log.signal.shape[1], axis=1), {})
 
 
 def parse_exclude(values: list[str] | None) -> Exclusion:

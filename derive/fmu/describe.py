@@ -305,7 +305,8 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
-    from derive.fmu.plant import amplitude_rad, plant_kernels, plant_parameters
+    from derive.fmu.plant import plant_kernels, plant_parameters
+    from derive.model.simspec import pulse_amplitudes
     from derive.sim.start import reference_offset
 
     arm = d.arm
@@ -335,12 +336,13 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
         ("u_max", arm.input_units, f"the amplifier's {word} limit of motor {{i}}, 0 = none ({limit_field})", limits),
         ("start", "s", "when the pulse train of link {i} starts (simulation.start)", s.start),
         ("theta0", "rad", "angle of joint {i} at the start, at rest (simulation.initial_theta)", s.initial_theta),
+        ("amplitude", tuple("m" if p else "rad" for p in arm.prismatic),
+         "pulse amplitude of joint {i} (simulation.amplitude, or amplitude_deg; section 5.2)", pulse_amplitudes(s, arm.n)),
         ("yd0", "rad", "y_d(0) of output {i}: the reference starts there at rest and the pulse train is added to "
          "it; 0, or C theta0 for simulation.reference_start = \"measured\" (set it with theta0)",
          tuple(float(v) for v in reference_offset(d, s))),
     )
-    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
-               ("amplitude", "rad", "pulse amplitude (simulation.amplitude_deg, section 5.2)", amplitude_rad(s)))
+    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),)
     every = tuple(known.get(str(sym)) or Parameter(sym, value, "", "", "") for sym, value in values)
     single, rules = fmu_rules(every, {str(sym): f"m->p[{k}]" for k, (sym, _) in enumerate(values)}, "double",
                               bodies=arm.spatial.bodies if arm.spatial is not None else ())

@@ -123,3 +123,15 @@ def test_an_arm_file_with_both_keys_is_one_clear_error(tmp_path, capsys):
     assert main(["simulate", str(arm), "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
     assert "simulation.amplitude" in err and "Traceback" not in err
+
+
+def test_a_sweeps_worst_sample_file_writes_one_of_the_two_keys_and_reads_back_the_same_settings():
+    """derive sweep writes every [simulation] key of a worst sample (derive.cli.sweep.simulation_table):
+    per-joint amplitudes, or amplitude_deg, never both (the file would be refused)."""
+    from derive.cli.sweep import simulation_table
+
+    for s in (replace(default_settings(2), amplitude=(0.1, 0.5)), replace(default_settings(2), amplitude_deg=30.0)):
+        table = simulation_table(s)
+        assert ("amplitude" in table) != ("amplitude_deg" in table)
+        back, problems = parse_simulation(table, 2)
+        assert not problems and back == s

@@ -35,12 +35,20 @@ ROOT = Path(__file__).resolve().parent.parent
 DT = 1e-3
 
 
+_BUILT: dict = {}
+
+
 def _build(tmp_path: Path, arm: str, fmi: int, form: str, plant: bool = False) -> Path:
-    d = derive.derive(derive.load_arm(arm))
-    name, data = plant_fmu(d, fmi) if plant else controller_fmu(d, FmuOptions(fmi, form, "double", ParamsMode.RUNTIME))
-    path = tmp_path / name
-    path.write_bytes(data)
-    return path
+    """The runtime-parameter FMU (the plant's with ``plant``), built once per session."""
+    key = (arm, fmi, form, plant)
+    if key not in _BUILT:
+        d = derive.derive(derive.load_arm(arm))
+        name, data = plant_fmu(d, fmi) if plant else controller_fmu(d, FmuOptions(fmi, form, "double",
+                                                                                  ParamsMode.RUNTIME))
+        path = tmp_path / name
+        path.write_bytes(data)
+        _BUILT[key] = path
+    return _BUILT[key]
 
 
 class Instance:
@@ -146,7 +154,7 @@ def test_the_case_fmu_tunables_is_refused_and_the_model_keeps_its_values(tmp_pat
 
 
 def test_exit_initialization_refuses_start_values_that_break_a_rule(tmp_path, capsys):
-    path = _build(tmp_path, "vertical_2link", 3, "npid")
+    path = _build(tmp_path, "vertical_2link", 3, "dobc")
     m = Instance(path, tmp_path / "x")
     assert m.set("T1", 0.5) is None    # T1 = T2 = 0.5: each value in its range, the pair not
     assert isinstance(m.exit_init(), Exception)
@@ -186,7 +194,7 @@ def test_every_tunable_parameter_is_refused_by_the_fmu_exactly_where_the_validat
     arm_path = ROOT / "derive" / "model" / "arms" / "vertical_2link.toml"
     data = tomllib.loads(arm_path.read_text())
     arm = derive.load_arm("vertical_2link")
-    path = _build(tmp_path, "vertical_2link", 3, "mpc")
+    path = _build(tmp_path, "vertical_2link", 3, "dobc")
     m = Instance(path, tmp_path / "x")
     checked = 0
     for p in arm.parameters:

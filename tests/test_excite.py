@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import derive
 from derive.cli import main
 from derive.errors import DataError
 from derive.identify.excite import excitation_limits, fourier, optimise, stacked
@@ -110,4 +112,51 @@ def test_limits_come_from_the_urdf_and_the_arm_file():
         from derive.model.chain import Limits
         from fractions import Fraction
         j = replace(ur5.chain.joints[0], limits=Limits(Fraction(1), Fraction(1), Fraction(1)))
+        excitation_limits(replace(ur5.chain, joints=(j,) + ur5.chain.joints[1:]))
+
+
+ROUND4 = Path(__file__).parent / "data" / "urdf" / "round4"
+
+
+def test_a_zero_urdf_velocity_or_effort_is_no_limit_in_every_command(tmp_path, capsys):
+    """Issue 34 item 6 (the case zero_effort_velocity): <limit effort="0" velocity="0"> is read as no
+    limit once, by the URDF reader, and noted in the starter file; init, show (the speed box) and
+    excite agree: excite takes controller.max_joint_speed (exit 0) where it read a zero limit (exit 2)."""
+    import shutil
+
+    from derive.control.grid import speed_box
+
+    for f in ("effz.urdf", "effz.toml"):
+        shutil.copy(ROUND4 / f, tmp_path / f)
+    arm = load_arm(tmp_path / "effz.toml")
+    assert all(j.limits.velocity is None and j.limits.effort is None for j in arm.chain.joints)
+    note = "<limit velocity=\"0\"> of joints 'j1', 'j2', 'j3' read as no velocity limit"
+    assert any(note in x for x in arm.chain.notes)
+    assert speed_box(derive.derive(arm)).source == "controller.max_joint_speed"
+    out = tmp_path / "traj.csv"
+    assert main(["excite", str(tmp_path / "effz.toml"), "--duration", "5", "--out", str(out), "--iterations", "0"]) == 0
+    printed = capsys.readouterr().out
+    assert "controller.max_joint_speed[1]" in printed and out.exists()
+    lim = excitation_limits(arm.chain, arm.controller.max_joint_speed)
+    assert [x.velocity for x in lim] == [2.0, 2.0, 2.0]
+    (tmp_path / "init").mkdir()
+    shutil.copy(ROUND4 / "effz.urdf", tmp_path / "init" / "effz.urdf")
+    assert main(["init", str(tmp_path / "init" / "effz.urdf")]) == 0
+    text = (tmp_path / "init" / "effz.toml").read_text()
+    assert f"#   {note} (the same in every command)\n" in text
+    assert "velocity 0 rad/s" not in text and "# joint 1: 'j1' (revolute; position [-3, 3] rad)\n" in text
+    assert "# torque_limit = 10.0" in text     # no effort limit: u is not clipped
+
+
+def test_a_limit_from_the_file_that_cannot_be_met_names_the_option_that_overrides_it():
+    from dataclasses import replace
+    from fractions import Fraction
+
+    from derive.model.chain import Limits
+
+    ur5 = load_arm("tests/data/urdf/ur5.toml")
+    j = replace(ur5.chain.joints[0], limits=Limits(Fraction(-1), Fraction(1), Fraction(-2)))
+    with pytest.raises(DataError, match=r"joint 1 \('shoulder_pan_joint'\): velocity limit -2 rad/s \(urdf joint "
+                                        r"'shoulder_pan_joint' <limit velocity>\): expected a finite number > 0 \(the "
+                                        r"joint must move to be excited\); --velocity-limit gives another"):
         excitation_limits(replace(ur5.chain, joints=(j,) + ur5.chain.joints[1:]))

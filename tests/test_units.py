@@ -50,7 +50,7 @@ def test_fmu_descriptions_of_a_torque_arm_say_n_m(torque):
     from derive.fmu.describe import plant_view, variables
 
     v = arm_view(torque, "double", ParamsMode.RUNTIME)
-    found, units = variables(torque, v, FORMS["dobc"], 3)
+    found, units, _ = variables(torque, v, FORMS["dobc"], 3)
     by = {x.name: x for x in found}
     for name in ("u[1]", "dhat[2]", "u_max[1]"):
         assert by[name].unit == "N.m", name

@@ -244,11 +244,12 @@ def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, 
         theta0, amp = pose
         lines += [
             f"initial_theta = [{', '.join(_g(x) for x in theta0)}]  # rad (m prismatic): the start pose, chosen so that",
-            "# the experiment's gravity torques stay within 0.8 of the effort limits and every pulse inside its",
-            "# joint's range (the zero pose did not: derive.cli.init_numbers.starter_pose)",
+            "# the experiment's gravity torques stay within 0.8 of the effort limits, the pose 5 % of each joint's",
+            "# travel inside its limits and every pulse inside its joint's range (the zero pose did not:",
+            "# derive.cli.init_numbers.starter_pose)",
             'reference_start = "measured"    # y_d starts at the start pose; the pulses are offsets from it',
-            f"amplitude_deg = {amp:g}" + " " * max(1, 18 - len(f"{amp:g}")) + "# deg: the pulses' height, "
-            "short of each joint's upper limit",
+            f"amplitude = [{', '.join(_g(x) for x in amp)}]  # rad (m prismatic): each joint's pulse, at most 90 deg (half",
+            "# the travel of a prismatic joint) and 0.8 of the room between the start and the upper limit",
         ]
     for key, values in (loads or {}).items():
         lines += [

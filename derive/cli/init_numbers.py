@@ -3,6 +3,7 @@ the sample time (derive.control.starter), the sampled loop's limits for the file
 (derive.control.sampling), and the RK4 substeps its plant needs (derive.sim.plant.decay_mode)."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from derive.errors import DeriveError
@@ -83,37 +84,50 @@ def rk4_substeps(d, sample_time: float, initial_theta=None, coulomb=None) -> int
 
 POSE_LOAD = 0.8        # the starter experiment's gravity torques at most this fraction of each effort limit
 POSE_CANDIDATES = 512  # seeded poses within the joint ranges tried when the zero pose does not do
-MIN_AMPLITUDE_DEG = 15.0
+POSE_MARGIN = 0.05     # the start pose at least this fraction of each joint's travel inside its limits
+PULSE_ROOM = 0.8       # each pulse at most this fraction of the room between its start and its upper limit
+PULSE_CAP = math.radians(90.0)   # rad: the paper's pulse (section 5.2); a prismatic joint's cap is half its travel
+PULSE_SCALES = (1.0, 0.8, 0.6, 0.45, 0.3, 1 / 6)   # fractions of the pulses tried, down to 15 deg of 90
 
 
-def starter_pose(d) -> tuple[tuple[float, ...], float] | None:
-    """A start pose and pulse amplitude [deg] for the starter file's experiment (section 5.2: each joint's
-    reference steps up by the amplitude from where it starts), or None when the defaults do: the zero pose
-    within every joint range with the 90 deg pulse inside it too, and the gravity torques g(theta) (eq. 12)
-    within POSE_LOAD of the URDF's effort limits all along the experiment (the pulses that are up together
-    at each time of the run, and the moves between, sampled). Else the pose of
-    POSE_CANDIDATES seeded ones within the ranges (the zero pose and the ranges' middles among them)
-    with the largest amplitude (at most 90 deg, at least MIN_AMPLITUDE_DEG, every pulse 20 % short of its
-    joint's upper limit) among those whose worst load over the pose and its pulses is within POSE_LOAD
-    (the least loaded when none is). Baxter's
-    arm at the zero pose needs 56 N m on its shoulder, whose effort limit is 50 N m: it sagged, and no
-    form could track."""
-    import math
-
+def starter_pose(d) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """A start pose and each joint's pulse amplitude, in the joint's own unit (rad; m prismatic), for
+    the starter file's experiment (section 5.2: each joint's reference steps up by its amplitude from
+    where it starts), or None when the defaults do: every joint revolute, the zero pose POSE_MARGIN of
+    each joint's travel inside its limits, the 90 deg pulses inside them with the same room, and the
+    gravity torques g(theta) (eq. 12) within POSE_LOAD of the URDF's effort limits all along the
+    experiment (the pulses that are up together at each time of the run, and the moves between,
+    sampled). Else, of POSE_CANDIDATES seeded poses POSE_MARGIN inside the ranges (the zero pose
+    moved inside and the ranges' middles among them), each joint's amplitude the smaller of its cap
+    (90 deg; half the travel of a prismatic joint) and PULSE_ROOM of the room up to its upper limit,
+    all of them scaled by the largest of PULSE_SCALES for which the worst load over the pose and its
+    pulses is within POSE_LOAD: the pose whose smallest scaled amplitude-to-cap ratio is the largest
+    (then the lightest; the least loaded with the smallest pulses when none holds). A joint without
+    a range (continuous, or a zero-width one: derive.control.inertia.joint_coordinates) starts
+    anywhere and takes the 90 deg pulse. Baxter's arm at the zero pose needs
+    56 N m on its shoulder, whose effort limit is 50 N m: it sagged, and no form could track; the
+    Fetch's torso (0 to 0.386 m) started at its lower limit and left its range, and its travel
+    set one amplitude for every joint (0.309 "rad"), issue 34 item 5."""
     import numpy as np
 
     from derive.dynamics.sx import batched
 
+    from derive.control.inertia import joint_coordinates
+
     n = d.n
-    joints = d.dynamics.chain.joints
-    lo = np.array([float(j.limits.lower) if j.limits.lower is not None else -math.pi for j in joints])
-    hi = np.array([float(j.limits.upper) if j.limits.upper is not None else math.pi for j in joints])
+    coords = joint_coordinates(d.arm, d.theta)   # a zero-width range (URDF 0, 0) is none, as everywhere
+    bounded = np.array([c.lower is not None and c.upper is not None for c in coords])
+    lo = np.array([c.lower if b else -math.pi for c, b in zip(coords, bounded)])
+    hi = np.array([c.upper if b else math.pi for c, b in zip(coords, bounded)])
+    prismatic = np.array([not c.angle for c in coords])
+    cap = np.where(prismatic, (hi - lo) / 2, PULSE_CAP)
+    margin = np.where(bounded, POSE_MARGIN * (hi - lo), 0.0)
     effort = np.array([float(m.input_limit) * float(m.gear_ratio) if m.input_limit else np.inf
                        for m in d.arm.motors])
     gravity = batched(list(d.dynamics.sym.theta), list(d.dynamics.gravity.xreplace(dict(d.dynamics.values))))
 
     def amplitude(Q: np.ndarray) -> np.ndarray:
-        return np.minimum(math.radians(90.0), 0.8 * (hi - Q).min(axis=1))
+        return np.where(bounded, np.minimum(cap, PULSE_ROOM * (hi - Q)), cap)
 
     sim = d.arm.simulation
     starts = sim.start or tuple(5.0 * i for i in range(n))
@@ -130,26 +144,36 @@ def starter_pose(d) -> tuple[tuple[float, ...], float] | None:
         """The worst |g_i| / effort_i along each pose's experiment (the pulses as they rise and fall)."""
         worst = np.zeros(Q.shape[0])
         for offset in path:
-            worst = np.maximum(worst, np.abs(gravity(Q + amp[:, None] * offset[None, :]) / effort).max(axis=1))
+            worst = np.maximum(worst, np.abs(gravity(Q + amp * offset[None, :]) / effort).max(axis=1))
         return worst
 
+    low, high = lo + margin, hi - margin
     zero = np.zeros((1, n))
-    inside = bool(np.all((lo <= 0) & (0 <= hi)))
-    if inside and amplitude(zero)[0] >= math.radians(90.0) - 1e-12 and load(zero, amplitude(zero))[0] <= POSE_LOAD:
+    inside = bool(np.all((low <= 0) & (0 <= high)))
+    if (inside and not prismatic.any() and np.all(amplitude(zero)[0] >= PULSE_CAP - 1e-12)
+            and load(zero, amplitude(zero))[0] <= POSE_LOAD):
         return None
     rng = np.random.default_rng(20261202)
-    Q = np.vstack([np.clip(zero, lo, hi), (lo + hi)[None] / 2, lo + (hi - lo) * rng.random((POSE_CANDIDATES, n))])
+    Q = np.vstack([np.clip(zero, low, high), (lo + hi)[None] / 2, low + (high - low) * rng.random((POSE_CANDIDATES, n))])
     amp = amplitude(Q)
-    score = load(Q, amp)
-    ok = amp >= math.radians(MIN_AMPLITUDE_DEG)
-    if not ok.any():
-        return None
-    light = ok & (score <= POSE_LOAD)
+    ratio = (amp / cap).min(axis=1)
+    scale, score = np.zeros(len(Q)), np.full(len(Q), np.inf)
+    for s in PULSE_SCALES:    # each pose's largest pulses (a common fraction of its amplitudes) within the limits
+        todo = np.flatnonzero(scale == 0)
+        if not len(todo):
+            break
+        worst = load(Q[todo], s * amp[todo])
+        fit = worst <= POSE_LOAD
+        scale[todo[fit]], score[todo[fit]] = s, worst[fit]
+    light = scale > 0
     if light.any():   # the largest pulses among the poses the effort limits hold, then the lightest
-        best = min(np.flatnonzero(light), key=lambda k: (-round(float(amp[k]), 3), float(score[k])))
-    else:
-        best = min(np.flatnonzero(ok), key=lambda k: (float(score[k]), -float(amp[k])))
-    return tuple(float(f"{x:.4g}") for x in Q[best]), float(f"{math.degrees(amp[best]):.3g}")
+        best = min(np.flatnonzero(light), key=lambda k: (-round(float(scale[k] * ratio[k]), 3), float(score[k])))
+    else:             # none holds: the least loaded with the smallest pulses
+        worst = load(Q, PULSE_SCALES[-1] * amp)
+        best = min(range(len(Q)), key=lambda k: (float(worst[k]), -float(ratio[k])))
+        scale[best] = PULSE_SCALES[-1]
+    pose = tuple(float(f"{x:.4g}") for x in Q[best])
+    return pose, tuple(float(f"{x:.3g}") for x in scale[best] * amplitude(np.array([pose]))[0])
 
 
 DISTURBANCE_ACCEL = 5.0   # rad/s^2 (m/s^2): the starter's input disturbance accelerates no joint faster than this alone

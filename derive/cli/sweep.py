@@ -47,6 +47,8 @@ def simulation_table(s) -> dict:
         v = getattr(s, f.name)
         if f.name == "mujoco_model" and not v:   # the default: the arm's own URDF (--plant mujoco)
             continue
+        if (f.name == "amplitude" and not v) or (f.name == "amplitude_deg" and s.amplitude):
+            continue                            # one of the two: per joint, else amplitude_deg for all
         out[f.name] = list(v) if isinstance(v, tuple) else v
     return out
 

@@ -24,7 +24,10 @@ in the initial estimate too: dhat(0) = -B^-1 W_dt C^-1 (e'(0) + K2 e(0)), with
 J at the first sample. With dhat(0) of W instead, the DOBC form starts from
 another estimate than the PID form applies (on a light wrist, dt W J^-1 >> 1,
 W_dt is about J / dt, far below W: 87.5 against 9.6 N m on the iiwa's wrist
-for a 0.2 rad step at 1 ms, issue 20 item 5).
+for a 0.2 rad step at 1 ms, issue 20 item 5). After the first sample the two sampled forms differ by
+W (J + dt W)^-1 c with c = O(dt) (the left-rectangle sums of e' and yd'' and dt (G_k - G_0) in the
+observer step; the exact recursion is in the README, "Implicit observer step", and is tested):
+O(dt) where dt W J^-1 is small, O(1) on a joint where it is large (issue 34 item 4).
 """
 from __future__ import annotations
 

@@ -18,11 +18,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from xml.sax.saxutils import escape
 
+import sympy as sp
+
 from derive.codegen.forms import Form, init_takes_dt
 from derive.codegen.views import ArmView
 from derive.control.pipeline import Derivation
+from derive.fmu.rules import RulesView, fmu_rules, single_checks
 from derive.fmu.units import Unit, fmi_unit
 from derive.model.actuators import input_word
+from derive.model.chain import Parameter
+from derive.model.rules import domain_rules
+from derive.model.spec import T1_SYMBOL, T2_SYMBOL
 
 # The controller's inputs (derive.codegen.kernels: theta, dtheta, yd, dyd, ddyd): field, unit, description
 INPUTS = (
@@ -32,6 +38,9 @@ INPUTS = (
     ("dyd", "rad/s", "first derivative of the reference y_d of output {i} (eq. 20)"),
     ("ddyd", "rad/s^2", "second derivative of the reference y_d of output {i} (eq. 15)"),
 )
+
+
+U_MAX = sp.Symbol("u_max", nonnegative=True)   # an FMU's input limit: >= 0, 0 = none
 
 
 def xml_text(text: str) -> str:
@@ -55,6 +64,9 @@ class Variable:
     get: str           # C rvalue of the instance m (m->in.theta[0]) or a literal
     set: str           # C lvalue, "" when the variable cannot be set
     finite: bool       # the setter refuses a non-finite value (parameters)
+    check: str = ""    # C condition on ``value`` the setter demands (a parameter's own range), "" none
+    minimum: str = ""  # XML min (the same range), "" none
+    range: str = ""    # the range in words ("> 0"), for the setter's message
 
 
 @dataclass(frozen=True)
@@ -90,6 +102,7 @@ class FmuView:
     sources: tuple[str, ...]    # C files of sources/, compiled together
     init_dt: bool = False       # the form's init takes dt (the implicit DOBC: derive.codegen.forms.init_takes_dt)
     estimate_after: bool = False   # the estimate a step applied is read after it (the implicit DOBC moves z first)
+    rules: RulesView | None = None   # the arm file's rules on several tunable parameters (derive.fmu.rules)
 
 
 def mask_type(v: ArmView) -> str:
@@ -108,7 +121,7 @@ def errors(v: ArmView) -> tuple[tuple[str, str], ...]:
 def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: str, sample_time: float,
              duration: float, sources: tuple[str, ...]) -> FmuView:
     """The view of the controller FMU of form ``f`` (FMI ``fmi``) of arm view ``v``."""
-    found, units = variables(d, v, f, fmi)
+    found, units, rules = variables(d, v, f, fmi)
     outputs = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
     units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name)) if fmi == 3 else units
     model = f"{v.arm}_{f.name}"
@@ -124,28 +137,39 @@ def fmu_view(d: Derivation, v: ArmView, f: Form, fmi: int, *, token: str, tool: 
         summary=f"{f.title} of arm {v.arm}, {f.law} ({f.equations}){step}",
         start_time="0.0", stop_time=repr(float(duration)), step_size=repr(float(sample_time)), tool=tool,
         sources=sources, init_dt=init_takes_dt(f, "implicit" if v.implicit else "explicit"),
-        estimate_after=v.implicit and f.name == "dobc")
+        estimate_after=v.implicit and f.name == "dobc", rules=rules)
 
 
 def _start(value: float) -> str:
     return repr(float(value))
 
 
-def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Variable, ...], tuple[Unit, ...]]:
-    """The FMU's variables in value-reference order (see the module docstring)
-    and the distinct units they use, sorted by name. Real variables are FMI 3
-    Float64 or Float32 as the C real type, FMI 2 Real (double) either way."""
+def variables(d: Derivation, v: ArmView, f: Form, fmi: int
+              ) -> tuple[tuple[Variable, ...], tuple[Unit, ...], RulesView | None]:
+    """The FMU's variables in value-reference order (see the module docstring),
+    the distinct units they use, sorted by name, and the rules on several tunable parameters
+    (runtime parameters: derive.fmu.rules; each parameter's own range is its setter's). Real
+    variables are FMI 3 Float64 or Float32 as the C real type, FMI 2 Real (double) either way."""
     rtype = "Real" if fmi == 2 else "Float32" if v.real == "float" else "Float64"
-    known = {str(p.symbol): p for p in d.arm.parameters}
+    arm = d.arm
+    known = {str(p.symbol): p for p in arm.parameters}
+    every = arm.parameters + tuple(Parameter(s, x, "", "", "") for s, x in d.values if str(s) not in known)
+    single, rules = fmu_rules(every, {name: f"m->params.{name}" for name, _, _ in v.params}, v.real,
+                              horizon_symbols=(T1_SYMBOL, T2_SYMBOL), W=d.observer.W,
+                              bodies=arm.spatial.bodies if arm.spatial is not None else ()) if v.runtime else ({}, None)
+    single["u_max"] = single_checks(domain_rules((Parameter(U_MAX, 0, "", "", ""),)))["u_max"]
     out: list[Variable] = []
     units: dict[str, Unit] = {}
 
-    def add(name, causality, variability, initial, start, unit, doc, get, set_="", finite=False, kind=None):
+    def add(name, causality, variability, initial, start, unit, doc, get, set_="", finite=False, kind=None,
+            rule=""):
         u = fmi_unit(unit)
         if u is not None:
             units[u.name] = u
+        check, minimum, words = single[rule] if rule in single and set_ else ("", "", "")
+        words = f"{words} {u.name}" if words and u is not None else words
         out.append(Variable(len(out) + 1, name, kind or rtype, causality, variability, initial, start,
-                            u.name if u else "", xml_text(doc), get, set_, finite))
+                            u.name if u else "", xml_text(doc), get, set_, finite, check, minimum, words))
 
     for field, unit, doc in INPUTS:
         for i in range(d.n):
@@ -176,13 +200,14 @@ def variables(d: Derivation, v: ArmView, f: Form, fmi: int) -> tuple[tuple[Varia
         text = f"{p.doc}, from {p.field}" if p is not None else doc
         slot = f"m->params.{name}"
         add(name, causality, variability, "exact", repr(values[name]), p.unit if p is not None else "",
-            text, slot if v.runtime else literal, slot if v.runtime else "", finite=True)
+            text, slot if v.runtime else literal, slot if v.runtime else "", finite=True, rule=name)
     for i, (literal, number) in enumerate(zip(v.u_max, v.py_u_max)):
         slot = f"m->params.u_max[{i}]"
         add(f"u_max[{i + 1}]", causality, variability, "exact", repr(float(number)), units_u[i],
             f"{what[units_u[i]]} limit of motor {i + 1} (0 = none): u is clipped, the integrator held and the "
-            "observer fed the clipped u", slot if v.runtime else literal, slot if v.runtime else "", finite=True)
-    return tuple(out), tuple(units[k] for k in sorted(units))
+            "observer fed the clipped u", slot if v.runtime else literal, slot if v.runtime else "", finite=True,
+            rule="u_max")
+    return tuple(out), tuple(units[k] for k in sorted(units)), rules
 
 
 @dataclass(frozen=True)
@@ -215,19 +240,22 @@ class PlantView:
     kernels: tuple
     defaults: tuple[tuple[str, str], ...]   # (C lvalue, C literal) set at instantiation and reset
     substeps: int
+    rules: RulesView | None = None   # the arm file's rules on several of the true arm's parameters
 
 
 def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
                     vectors: tuple[tuple[str, object, str, tuple[float, ...]], ...],
                     scalars: tuple[tuple[str, str, str, float], ...],
-                    fmi: int, inputs: tuple[str, ...] | None = None
+                    fmi: int, inputs: tuple[str, ...] | None = None,
+                    single: dict[str, tuple[str, str, str]] | None = None
                     ) -> tuple[tuple[Variable, ...], tuple[Unit, ...], tuple[tuple[str, str], ...]]:
     """The plant FMU's variables: input u, outputs (the controller's inputs), and
     tunable parameters: ``params`` (name, value, unit, description) of the true
     arm (m->p[k]); ``vectors`` (name, unit, description, values) per joint and
     ``scalars`` (name, unit, description, value), each read from the instance
     field of the same name (a vector's unit: one string, or one per joint). ``inputs``: the
-    unit of each u_i (V, or N m in torque mode). Also the units and the defaults (C lvalue, literal)."""
+    unit of each u_i (V, or N m in torque mode); ``single``: the setter's check of a parameter by
+    name (derive.fmu.rules.single_checks). Also the units and the defaults (C lvalue, literal)."""
     from derive.codegen.printing import c_literal
 
     rtype = "Real" if fmi == 2 else "Float64"
@@ -239,8 +267,10 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
         u = fmi_unit(unit)
         if u is not None:
             units[u.name] = u
+        check, minimum, words = (single or {}).get(name, ("", "", "")) if set_ else ("", "", "")
+        words = f"{words} {u.name}" if words and u is not None else words
         out.append(Variable(len(out) + 1, name, rtype, causality, variability, initial, start,
-                            u.name if u else "", xml_text(doc), get, set_, finite))
+                            u.name if u else "", xml_text(doc), get, set_, finite, check, minimum, words))
 
     inputs = inputs or ("V",) * n
     what = {"V": "voltage", "N m": "torque", "N": "force"}
@@ -275,7 +305,8 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
-    from derive.fmu.plant import amplitude_rad, plant_kernels, plant_parameters
+    from derive.fmu.plant import plant_kernels, plant_parameters
+    from derive.model.simspec import pulse_amplitudes
     from derive.sim.start import reference_offset
 
     arm = d.arm
@@ -305,13 +336,17 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
         ("u_max", arm.input_units, f"the amplifier's {word} limit of motor {{i}}, 0 = none ({limit_field})", limits),
         ("start", "s", "when the pulse train of link {i} starts (simulation.start)", s.start),
         ("theta0", "rad", "angle of joint {i} at the start, at rest (simulation.initial_theta)", s.initial_theta),
+        ("amplitude", tuple("m" if p else "rad" for p in arm.prismatic),
+         "pulse amplitude of joint {i} (simulation.amplitude, or amplitude_deg; section 5.2)", pulse_amplitudes(s, arm.n)),
         ("yd0", "rad", "y_d(0) of output {i}: the reference starts there at rest and the pulse train is added to "
          "it; 0, or C theta0 for simulation.reference_start = \"measured\" (set it with theta0)",
          tuple(float(v) for v in reference_offset(d, s))),
     )
-    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
-               ("amplitude", "rad", "pulse amplitude (simulation.amplitude_deg, section 5.2)", amplitude_rad(s)))
-    found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi, arm.input_units)
+    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),)
+    every = tuple(known.get(str(sym)) or Parameter(sym, value, "", "", "") for sym, value in values)
+    single, rules = fmu_rules(every, {str(sym): f"m->p[{k}]" for k, (sym, _) in enumerate(values)}, "double",
+                              bodies=arm.spatial.bodies if arm.spatial is not None else ())
+    found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi, arm.input_units, single)
     if fmi == 3:
         units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name))
     listed = tuple((x.vr, k + 1) for k, x in enumerate(found) if x.causality == "output")
@@ -330,4 +365,4 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
         summary=f"simulation plant of arm {arm.name}: RK4, {s.substeps} substeps per step, u held",
         real_type="Float64", n=arm.n, np=len(values), kernels=plant_kernels(d, tuple(v[0] for v in values),
                                                                             s.substeps),
-        defaults=defaults, substeps=s.substeps)
+        defaults=defaults, substeps=s.substeps, rules=rules)

@@ -22,7 +22,8 @@ Kernels (CasADi, printed to C double by derive.codegen.printing):
 =============  ====================================  =========================================
 kernel         inputs                                outputs
 =============  ====================================  =========================================
-pulse          t, start (n), period, amplitude, yd0  r (n): yd0 + amplitude in each first half-period
+pulse          t, start (n), period, amplitude (n),  r (n): yd0 + amplitude in each first half-period
+               yd0
 amplifier      u, u_max (n)                          u_a: u clipped where u_max > 0
 reference      f = (y_d, y_d') (2n), r               y_d'' = r - 1.8 y_d' - y_d (derive.sim.kernels)
 rk4            x, f, u_a, d, tau_c, b, r, H, p       one RK4 substep of length H/substeps (derive.sim.kernels)
@@ -33,7 +34,6 @@ linear solve printed as arithmetic).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -74,7 +74,7 @@ def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int)
     sym = ca.SX.sym
     x, f = sym("x", 2 * n), sym("f", 2 * n)
     u, dist, tau_c, visc, r, u_max, start = (sym(k, n) for k in ("u", "d", "tauc", "bx", "r", "u_max", "start"))
-    H, p, t, period, amp = sym("H"), sym("p", len(params)), sym("t"), sym("period"), sym("amplitude")
+    H, p, t, period, amp = sym("H"), sym("p", len(params)), sym("t"), sym("period"), sym("amplitude", n)
     on = ca.logic_and(start <= t, ca.fmod(t - start, period) < period / 2)
     yd0 = sym("yd0", n)
     pulse = ca.Function("pulse", [t, start, period, amp, yd0], [yd0 + ca.if_else(on, amp, 0)],
@@ -104,7 +104,3 @@ def plant_kernels(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int) -
                                printed.operations, printed.unused_inputs))
     return tuple(out)
 
-
-def amplitude_rad(s: SimSettings) -> float:
-    """The pulse amplitude in radians (the arm file gives degrees)."""
-    return math.radians(s.amplitude_deg)

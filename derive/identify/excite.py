@@ -54,8 +54,9 @@ class JointLimits:
 def excitation_limits(chain: Chain, speeds=None, velocity=None, acceleration=None) -> tuple[JointLimits, ...]:
     """Each joint's limits: position and velocity from the URDF's <limit> (or the arm file's
     controller.max_joint_speed), ``velocity``/``acceleration`` (n numbers, from the command
-    line) override; else the stated defaults. DataError when a limit cannot be met (not > 0,
-    an empty position range)."""
+    line) override; else the stated defaults. A URDF velocity of 0 is no limit (derive.model.urdf
+    reads it as None, as every command does). DataError when a limit cannot be met (not > 0,
+    an empty position range), naming the option that overrides it."""
     out, problems = [], []
     for i, j in enumerate(chain.joints):
         unit = "rad" if j.type.rotates else "m"
@@ -81,8 +82,10 @@ def excitation_limits(chain: Chain, speeds=None, velocity=None, acceleration=Non
             problems.append(f"{label}: position limits [{lo:g}, {hi:g}] {unit} ({src_p}): expected lower < upper")
         for what, x, src, u in (("velocity", v, src_v, f"{unit}/s"), ("acceleration", a, src_a, f"{unit}/s^2")):
             if not (math.isfinite(x) and x > 0):
+                option = f"--{what}-limit"
                 problems.append(f"{label}: {what} limit {x:g} {u} ({src}): expected a finite number > 0 "
-                                "(the joint must move to be excited)")
+                                "(the joint must move to be excited)"
+                                + ("" if src == option else f"; {option} gives another"))
         out.append(JointLimits(j.name, unit, lo, hi, v, a, (src_p, src_v, src_a)))
     if problems:
         raise DataError("excitation limits that cannot be met:\n  - " + "\n  - ".join(problems))

@@ -25,7 +25,7 @@ from typing import Any
 import sympy as sp
 
 from derive.model.chain import Actuation, Actuator, Parameter
-from derive.model.fields import NONNEGATIVE, POSITIVE, Num, Reader
+from derive.model.fields import NONNEGATIVE, POSITIVE, Num, Reader, domain
 
 _ZERO = Fraction(0)
 
@@ -93,19 +93,18 @@ def actuator(i: int, motor: Motor, friction: Fraction, friction_field: str,
     names them (Kt1, Kv1, Ra1, gr1, Jm1, bv1). The bound on |u_i| stays on the
     Motor (:attr:`Motor.input_limit`)."""
     f = f"motor[{i}]"
-    pos, nonneg = {"positive": True}, {"nonnegative": True}
 
-    def param(name: str, value: Fraction, unit: str, field: str, doc: str, **assume: bool) -> Parameter:
-        return Parameter(_sym(f"{name}{i}", **assume), value, unit, field, doc)
+    def param(name: str, value: Fraction, unit: str, field: str, doc: str, num: Num) -> Parameter:
+        return Parameter(_sym(f"{name}{i}", **domain(num)), value, unit, field, doc)
 
-    gr = param("gr", motor.gear_ratio, "", f"{f}.gear_ratio", f"gear ratio of motor {i}", **pos)
-    Jm = param("Jm", motor.rotor_inertia, "kg m^2", f"{f}.rotor_inertia", f"rotor inertia of motor {i}", **nonneg)
-    bv = param("bv", friction, "N m s/rad", friction_field, friction_doc or f"viscous friction of joint {i}", **nonneg)
+    gr = param("gr", motor.gear_ratio, "", f"{f}.gear_ratio", f"gear ratio of motor {i}", GEAR)
+    Jm = param("Jm", motor.rotor_inertia, "kg m^2", f"{f}.rotor_inertia", f"rotor inertia of motor {i}", ROTOR)
+    bv = param("bv", friction, "N m s/rad", friction_field, friction_doc or f"viscous friction of joint {i}", FRICTION)
     if motor.actuation is Actuation.VOLTAGE:
-        Kt = param("Kt", motor.torque_constant, "N m/A", f"{f}.torque_constant", f"torque constant of motor {i}", **pos)
+        Kt = param("Kt", motor.torque_constant, "N m/A", f"{f}.torque_constant", f"torque constant of motor {i}", KT)
         Kv = param("Kv", motor.voltage_constant, "V s/rad", f"{f}.voltage_constant",
-                   f"voltage constant of motor {i}", **nonneg)
-        Ra = param("Ra", motor.resistance, "ohm", f"{f}.resistance", f"armature resistance of motor {i}", **pos)
+                   f"voltage constant of motor {i}", KV)
+        Ra = param("Ra", motor.resistance, "ohm", f"{f}.resistance", f"armature resistance of motor {i}", RA)
         act = Actuator(Actuation.VOLTAGE, gr.symbol, Jm.symbol, bv.symbol, Kt.symbol, Kv.symbol, Ra.symbol)
         return act, (Kt, Kv, Ra, gr, Jm, bv)
     return Actuator(Actuation.TORQUE, gr.symbol, Jm.symbol, bv.symbol), (gr, Jm, bv)
@@ -119,6 +118,9 @@ VOLTAGE_KEYS = {"torque_constant": POSITIVE["N m/A"].expected, "voltage_constant
                 "voltage_limit": None, "actuation": None}
 TORQUE_KEYS = {"gear_ratio": None, "rotor_inertia": None, "torque_limit": None, "actuation": None}
 _TORQUE_LIMIT = Num("N m", _ZERO, True)
+# What each field accepts: the reader checks it, and its parameter's symbol has that domain (fields.domain)
+GEAR, ROTOR, FRICTION = POSITIVE[""], NONNEGATIVE["kg m^2"], NONNEGATIVE["N m s/rad"]
+KT, KV, RA = POSITIVE["N m/A"], NONNEGATIVE["V s/rad"], POSITIVE["ohm"]
 
 
 def actuation_value(r: Reader, value: Any, field: str, default: Actuation) -> Actuation:
@@ -141,15 +143,15 @@ def read_motor(r: Reader, entry: Any, i: int, default: Actuation, joint_friction
     if joint_friction:
         keys["viscous_friction"] = None
     d = r.table(entry, f, keys, "a table") or {}
-    friction = r.number(d, "viscous_friction", f, NONNEGATIVE["N m s/rad"]) if joint_friction else None
-    gear = r.number(d, "gear_ratio", f, POSITIVE[""], Fraction(1))
-    rotor = r.number(d, "rotor_inertia", f, NONNEGATIVE["kg m^2"], _ZERO)
+    friction = r.number(d, "viscous_friction", f, FRICTION) if joint_friction else None
+    gear = r.number(d, "gear_ratio", f, GEAR, Fraction(1))
+    rotor = r.number(d, "rotor_inertia", f, ROTOR, _ZERO)
     if kind is Actuation.TORQUE:
         return Motor(None, None, None, gear, rotor, None, kind,
                      r.number(d, "torque_limit", f, _TORQUE_LIMIT), friction)
-    return Motor(torque_constant=r.number(d, "torque_constant", f, POSITIVE["N m/A"]),
-                 voltage_constant=r.number(d, "voltage_constant", f, NONNEGATIVE["V s/rad"]),
-                 resistance=r.number(d, "resistance", f, POSITIVE["ohm"]),
+    return Motor(torque_constant=r.number(d, "torque_constant", f, KT),
+                 voltage_constant=r.number(d, "voltage_constant", f, KV),
+                 resistance=r.number(d, "resistance", f, RA),
                  gear_ratio=gear, rotor_inertia=rotor,
                  voltage_limit=r.number(d, "voltage_limit", f, POSITIVE["V"]), actuation=kind,
                  viscous_friction=friction)

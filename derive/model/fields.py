@@ -159,6 +159,18 @@ class Num:
         return f"a finite number{bound}" + (f" ({self.unit})" if self.unit else "") + self.alternative
 
 
+def domain(num: Num) -> dict[str, bool]:
+    """The SymPy assumptions of a symbol whose values ``num`` accepts: positive (> 0),
+    nonnegative (>= 0) or real (unbounded). Every bound of an arm file is at 0. The symbol's
+    domain is the value's range wherever it is checked again (derive.model.rules: the FMU's
+    tunable parameters)."""
+    if num.low is None:
+        return {"real": True}
+    if num.low != 0:
+        raise ValueError(f"domain: a bound at 0 has a SymPy assumption, got {fmt(num.low)}")
+    return {"positive": True} if num.strict else {"nonnegative": True}
+
+
 POSITIVE = {u: Num(u, _ZERO, True) for u in ("m", "kg", "N m/A", "ohm", "s", "rad/s", "V", "")}
 NONNEGATIVE = {u: Num(u, _ZERO) for u in ("kg", "kg m^2", "N m s/rad", "V s/rad", "m/s^2", "s")}
 ANY = {u: Num(u) for u in ("m", "1/s", "")}

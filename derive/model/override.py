@@ -23,13 +23,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 from fractions import Fraction
-from itertools import combinations
 from typing import Any
 
 import sympy as sp
 
 from derive.model.chain import Body, Chain, Parameter
 from derive.model.fields import ANY, NONNEGATIVE, Reader, show
+from derive.model.rules import PHYSICAL, physical
 
 KEYS = {"joint": "the moving joint whose body this replaces: its name or number (1-based)",
         "mass": "the body's mass (kg)", "first_moment": "h = m c, 3 numbers [kg m] in the joint's frame",
@@ -65,18 +65,8 @@ def _numbers(r: Reader, value: Any, field: str, shape: tuple[int, ...]) -> list 
 
 def physical_problem(entries: list[Fraction]) -> str | None:
     """Why ten exact body parameters (m, h, I about the frame's origin) have no mass
-    distribution, or None: every principal minor of the pseudo-inertia must be >= 0."""
-    m, hx, hy, hz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz = (sp.Rational(x.numerator, x.denominator) for x in entries)
-    half = (Ixx + Iyy + Izz) / 2
-    P = sp.Matrix([[half - Ixx, -Ixy, -Ixz, hx], [-Ixy, half - Iyy, -Iyz, hy], [-Ixz, -Iyz, half - Izz, hz],
-                   [hx, hy, hz, m]])
-    for k in range(1, 5):
-        for rows in combinations(range(4), k):
-            if P.extract(list(rows), list(rows)).det() < 0:
-                return ("a physically consistent body: pseudo-inertia [[tr(I)/2 1 - I, h], [h^T, m]] positive "
-                        "semidefinite (mass >= 0, the inertia about the centre of mass positive semidefinite with "
-                        "the triangle inequality)")
-    return None
+    distribution, or None (derive.model.rules.physical: every principal minor of the pseudo-inertia >= 0)."""
+    return None if physical(entries) else PHYSICAL
 
 
 def apply_overrides(r: Reader, value: Any, chain: Chain) -> Chain:

@@ -30,16 +30,19 @@ from typing import Any
 import sympy as sp
 
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
-from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, Num, Reader
+from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, Num, Reader, domain
 from derive.model.rigid import body_from_com, merge, translation
 
 UNIFORM_ROD = "uniform_rod"
 _ZERO = Fraction(0)
 LINK_INERTIA = Num("kg m^2, about the centre of mass", _ZERO, alternative=" or 'uniform_rod' (m l^2 / 12)")
-LINK_KEYS = {"length": POSITIVE["m"].expected, "mass": NONNEGATIVE["kg"].expected, "com": None,
+# What each field accepts: the reader checks it, and its parameter's symbol has that domain (fields.domain)
+LENGTH, MASS, COM = POSITIVE["m"], NONNEGATIVE["kg"], ANY["m"]
+PM_MASS, PM_DISTANCE, PM_INERTIA = POSITIVE["kg"], ANY["m"], NONNEGATIVE["kg m^2"]
+LINK_KEYS = {"length": LENGTH.expected, "mass": MASS.expected, "com": None,
              "inertia": None, "viscous_friction": None}
-PM_KEYS = {"link": "the number of the link that carries it", "distance": ANY["m"].expected,
-           "mass": POSITIVE["kg"].expected, "inertia": None, "label": None}
+PM_KEYS = {"link": "the number of the link that carries it", "distance": PM_DISTANCE.expected,
+           "mass": PM_MASS.expected, "inertia": None, "label": None}
 
 
 @dataclass(frozen=True)
@@ -88,9 +91,9 @@ def read_links(r: Reader, value: Any) -> list[Link] | None:
     for i, entry in enumerate(entries, 1):
         f = f"link[{i}]"
         d = r.table(entry, f, LINK_KEYS, "a table")
-        length = r.number(d, "length", f, POSITIVE["m"])
-        mass = r.number(d, "mass", f, NONNEGATIVE["kg"])
-        com = r.number(d, "com", f, ANY["m"], None if length is None else length / 2)
+        length = r.number(d, "length", f, LENGTH)
+        mass = r.number(d, "mass", f, MASS)
+        com = r.number(d, "com", f, COM, None if length is None else length / 2)
         rod = d.get("inertia", UNIFORM_ROD)
         is_rod = isinstance(rod, str) and rod == UNIFORM_ROD
         if is_rod:
@@ -112,9 +115,9 @@ def read_point_masses(r: Reader, value: Any, n: int | None) -> list[PointMass]:
               and 1 <= link <= (n if n is not None else link))
         if "link" in d and not ok:
             r.bad(f"{f}.link", f"a link number from 1 to {n}" if n else "a link number >= 1", link)
-        out.append(PointMass(int(link) - 1 if ok else -1, r.number(d, "distance", f, ANY["m"]),
-                             r.number(d, "mass", f, POSITIVE["kg"]),
-                             r.number(d, "inertia", f, NONNEGATIVE["kg m^2"], _ZERO), r.text(d, "label", f)))
+        out.append(PointMass(int(link) - 1 if ok else -1, r.number(d, "distance", f, PM_DISTANCE),
+                             r.number(d, "mass", f, PM_MASS),
+                             r.number(d, "inertia", f, PM_INERTIA, _ZERO), r.text(d, "label", f)))
     return out
 
 
@@ -128,7 +131,6 @@ def planar_chain(links: list[Link], point_masses: list[PointMass], gravity: Para
     """The chain of a planar arm file; ``direction``: the unit vector of free
     fall in the base xy plane (3 x 1, z = 0); gravity = g direction."""
     n = len(links)
-    pos, nonneg, real = {"positive": True}, {"nonnegative": True}, {"real": True}
     params: dict[str, list[Parameter]] = {k: [] for k in ("l", "m", "c", "Ic", "mp", "rp", "Ip")}
 
     def add(kind: str, index: int, value: Fraction, unit: str, field: str, doc: str, **assume: bool) -> sp.Symbol:
@@ -140,21 +142,22 @@ def planar_chain(links: list[Link], point_masses: list[PointMass], gravity: Para
     previous: sp.Symbol | None = None
     for i, link in enumerate(links, 1):
         f = f"link[{i}]"
-        l = add("l", i, link.length, "m", f"{f}.length", f"length of link {i}", **pos)
-        m = add("m", i, link.mass, "kg", f"{f}.mass", f"mass of link {i}", **nonneg)
+        l = add("l", i, link.length, "m", f"{f}.length", f"length of link {i}", **domain(LENGTH))
+        m = add("m", i, link.mass, "kg", f"{f}.mass", f"mass of link {i}", **domain(MASS))
         c = l / 2 if link.com_default else add("c", i, link.com, "m", f"{f}.com",
-                                                 f"centre-of-mass distance of link {i} from its joint", **real)
+                                                 f"centre-of-mass distance of link {i} from its joint", **domain(COM))
         Ic = m * l ** 2 / 12 if link.uniform_rod else add(
-            "Ic", i, link.inertia, "kg m^2", f"{f}.inertia", f"inertia of link {i} about its centre of mass", **nonneg)
+            "Ic", i, link.inertia, "kg m^2", f"{f}.inertia", f"inertia of link {i} about its centre of mass",
+            **domain(LINK_INERTIA))
         body = _lamina(m, c, Ic)
         for k, pm in enumerate(point_masses, 1):
             if pm.link == i - 1:
                 pf = f"point_mass[{k}]"
-                mp = add("mp", k, pm.mass, "kg", f"{pf}.mass", f"mass of point mass {k}", **pos)
+                mp = add("mp", k, pm.mass, "kg", f"{pf}.mass", f"mass of point mass {k}", **domain(PM_MASS))
                 rp = add("rp", k, pm.distance, "m", f"{pf}.distance",
-                         f"distance of point mass {k} from its link's joint", **real)
+                         f"distance of point mass {k} from its link's joint", **domain(PM_DISTANCE))
                 Ip = add("Ip", k, pm.inertia, "kg m^2", f"{pf}.inertia",
-                         f"inertia of point mass {k} about its centre", **nonneg)
+                         f"inertia of point mass {k} about its centre", **domain(PM_INERTIA))
                 body = merge(body, _lamina(mp, rp, Ip))
         origin = Transform.identity() if previous is None else translation(previous, 0, 0)
         previous = l

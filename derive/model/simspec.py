@@ -10,7 +10,9 @@ duration            30.0                   simulated time [s]
 sample_time         0.002                  controller sample time [s]
 substeps            4                      RK4 steps of the plant per sample
 pulse_period        30.0                   period of the reference pulse train [s]
-amplitude_deg       90.0                   pulse amplitude (section 5.2) [deg]
+amplitude_deg       90.0                   pulse amplitude (section 5.2) [deg], every joint
+amplitude           [amplitude_deg, ...]   pulse amplitude per joint in the joint's unit [rad; m
+                                           prismatic], instead of amplitude_deg (not both)
 start               [0, 5, 10, ...]        when each link's pulse train starts [s]
 coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
 viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
@@ -56,6 +58,7 @@ class SimSettings:
     substeps: int = 4
     pulse_period: float = 30.0
     amplitude_deg: float = 90.0
+    amplitude: tuple[float, ...] = ()   # per joint [rad, m prismatic]; () = amplitude_deg for every joint
     start: tuple[float, ...] = ()
     coulomb_friction: tuple[float, ...] = ()
     viscous_friction: tuple[float, ...] = ()
@@ -77,6 +80,12 @@ class SimSettings:
 REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
 
 
+def pulse_amplitudes(s: SimSettings, n: int) -> tuple[float, ...]:
+    """Each joint's pulse amplitude (n) in its own unit [rad, m prismatic]: ``amplitude``, else
+    ``amplitude_deg`` in radians for every joint (a prismatic joint reads that number in metres)."""
+    return s.amplitude if s.amplitude else (math.radians(s.amplitude_deg),) * n
+
+
 def default_settings(n: int) -> SimSettings:
     """Defaults for an n-joint arm."""
     return SimSettings(start=tuple(5.0 * i for i in range(n)),
@@ -90,7 +99,7 @@ def default_settings(n: int) -> SimSettings:
 
 _SCALARS = {"duration": (0.0, True), "sample_time": (0.0, True), "pulse_period": (0.0, True),
             "amplitude_deg": (None, False), "payload_scale": (0.0, False), "tacho_filter_hz": (0.0, False)}
-_VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "disturbance": None,
+_VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "disturbance": None, "amplitude": None,
             "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None, "link_mass_scale": 0.0,
             "torque_constant_scale": 0.0, "voltage_constant_scale": 0.0, "resistance_scale": 0.0}
 _POSITIVE = {"link_mass_scale", "torque_constant_scale", "resistance_scale"}  # factors that must stay > 0
@@ -156,6 +165,9 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                     "to it)", repr(v)[:60]))
         else:
             values["reference_start"] = v
+    if "amplitude" in table and "amplitude_deg" in table:
+        problems.append(Problem("simulation.amplitude", "either amplitude (per joint, rad or m) or amplitude_deg "
+                                "(every joint, deg), not both", "both"))
     duration = values.get("duration", base.duration)
     sample = values.get("sample_time", base.sample_time)
     if sample >= duration and "sample_time" in values:

@@ -48,8 +48,8 @@ import sympy as sp
 from derive.errors import Problem, SpecError
 from derive.model.actuators import Motor, actuation_value, actuator, input_unit, read_motors, terms
 from derive.model.chain import Actuation, Actuator, Chain, Parameter
-from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, fmt, inline, printable, show,
-                                 text_problem)
+from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Reader, domain, fmt, inline, printable,
+                                 show, text_problem)
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
 from derive.model.override import apply_overrides
@@ -57,6 +57,7 @@ from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.singular import unmoved_joint
 from derive.model.rigid import rational_unit
+from derive.model.rules import division_free_det, horizon
 
 from derive.model.sweepspec import SweepSpec, parse_sweep
 from derive.paths import ARMS_DIR, DEFAULT_ARM, packaged_arms, resolve_arm_path  # noqa: F401 (re-exported)
@@ -168,7 +169,7 @@ class Arm:
         return tuple(input_unit(m, p) for m, p in zip(self.motors, self.prismatic))
 
 
-T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", nonnegative=True), sp.Symbol("T2", positive=True)
+T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", **domain(NONNEGATIVE["s"])), sp.Symbol("T2", **domain(POSITIVE["s"]))
 
 
 def w_symbols(n: int) -> tuple[sp.Symbol, ...]:
@@ -186,7 +187,7 @@ MOMENTUM_GAIN = Fraction(50)   # 1/s: the default K_i of the momentum observer (
 
 def momentum_symbols(n: int) -> tuple[sp.Symbol, ...]:
     """Gain symbols kr1..krn [1/s] of the momentum observer, K = diag(kr) (derive.control.momentum)."""
-    return tuple(sp.Symbol(f"kr{i + 1}", positive=True) for i in range(n))
+    return tuple(sp.Symbol(f"kr{i + 1}", **domain(MOMENTUM)) for i in range(n))
 
 
 def momentum_parameters(c: "Controller") -> tuple[Parameter, ...]:
@@ -240,7 +241,7 @@ def controller_parameters(c: Controller, prismatic: tuple[bool, ...] | None = No
 
 
 def gravity_parameter(g: Fraction) -> Parameter:
-    return Parameter(sp.Symbol("g", nonnegative=True), g, "m/s^2", "arm.gravity",
+    return Parameter(sp.Symbol("g", **domain(GRAVITY)), g, "m/s^2", "arm.gravity",
                      "acceleration of free fall along gravity_direction")
 
 
@@ -331,6 +332,7 @@ W_EXPECTED = ("an array of n observer gains w_j > 0 [N m s/rad] (W[i][j] = w_j f
               "(a full W), or 'auto' (chosen by an SDP for max_joint_speed)")
 RATE = Num("1/s", _ZERO)
 MOMENTUM = Num("1/s", _ZERO, True)   # controller.momentum_gain[i] > 0
+GRAVITY = NONNEGATIVE["m/s^2"]
 
 
 def _kind(r: Reader, top: dict, arm: Any) -> str | None:
@@ -467,7 +469,7 @@ def _head(r: Reader, value: Any, size: int) -> _Head:
     name = d.get("name", "")
     if "name" in d and (found := name_check(name)):
         r.add("arm.name", found[0], found[1] if isinstance(name, str) else show(name))
-    return _Head(name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", NONNEGATIVE["m/s^2"], _ZERO),
+    return _Head(name, r.text(d, "description", "arm"), r.number(d, "gravity", "arm", GRAVITY, _ZERO),
                  _direction(r, d.get("gravity_direction"), size),
                  actuation_value(r, d.get("actuation"), "arm.actuation", Actuation.VOLTAGE))
 
@@ -521,7 +523,7 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
     if d is None:
         return None
     T1, T2 = r.number(d, "T1", f, NONNEGATIVE["s"]), r.number(d, "T2", f, POSITIVE["s"])
-    if T1 is not None and T2 is not None and T1 >= T2:
+    if T1 is not None and T2 is not None and not horizon(T1_SYMBOL, T2_SYMBOL).holds({T1_SYMBOL: T1, T2_SYMBOL: T2}):
         shown = show(d["T2"]) + (f" (= {fmt(T2)})" if isinstance(d["T2"], str) else "")
         r.add("controller.T2", f"a number > T1 = {fmt(T1)} (s; the prediction horizon [T1, T2] of eq. 14)", shown)
     w, W, auto = _observer_gain(r, d, n)
@@ -567,7 +569,7 @@ def _observer_gain(r: Reader, d: dict, n: int | None) -> tuple[tuple | None, tup
         for i in bad:
             r.add(f"controller.w[{i + 1}][{i + 1}]", "a diagonal entry > 0 [N m s/rad] (W + W^T must be positive "
                   "definite)", show(value[i][i]))
-        if not bad and _det(rows) == 0:
+        if not bad and division_free_det(rows, _ZERO) == 0:
             r.add("controller.w", "an invertible W (V of eq. a7 uses W^-1)", f"{inline(value)} (det W = 0)")
             return None, None, False
         return (None, tuple(tuple(row) for row in rows), False) if not bad else (None, None, False)
@@ -597,21 +599,6 @@ def _vector(r: Reader, d: dict, key: str, n: int | None, num: Num) -> list | Non
     return [r.value(x, f"{field}[{i}]", num) for i, x in enumerate(value, 1)]
 
 
-def _det(rows: list[list[Fraction]]) -> Fraction:
-    """Exact determinant by Gaussian elimination."""
-    a, det = [row[:] for row in rows], Fraction(1)
-    for c in range(len(a)):
-        pivot = next((i for i in range(c, len(a)) if a[i][c] != 0), None)
-        if pivot is None:
-            return _ZERO
-        if pivot != c:
-            a[c], a[pivot], det = a[pivot], a[c], -det
-        det *= a[c][c]
-        for i in range(c + 1, len(a)):
-            a[i] = [x - a[i][c] / a[c][c] * y for x, y in zip(a[i], a[c])]
-    return det
-
-
 def _matrix(r: Reader, value: Any, n: int | None) -> tuple[tuple[Fraction, ...], ...]:
     """C of y = C theta (eq. 13): n x n and invertible; the identity when not given."""
     identity = tuple(tuple(Fraction(int(i == j)) for j in range(n)) for i in range(n or 0))
@@ -627,7 +614,7 @@ def _matrix(r: Reader, value: Any, n: int | None) -> tuple[tuple[Fraction, ...],
             for i, row in enumerate(value, 1)]
     if any(x is None for row in rows for x in row):
         return identity
-    if _det(rows) == 0:
+    if division_free_det(rows, _ZERO) == 0:
         r.add("controller.C", "an invertible matrix (u* of eq. 15 uses C^-1)",
               f"the singular matrix {inline(value)} (det C = 0)")
         return identity

@@ -323,6 +323,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     friction: list[Fraction | None] = []
     merged, held = [], []
     log: list[tuple[str, str, str]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
+    zero: dict[str, list[str]] = {"velocity": [], "effort": []}   # <limit> keys of 0: no limit
     stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
     while stack:
         name, owner, T = stack.pop()
@@ -335,7 +336,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
                 axis = _unit_axis(r, j, notes)
                 if axis is None:
                     continue
-                joints.append(Joint(j.name, MOVING[j.type], tidy(origin), axis, _limits(j), _joint_field(j.name)))
+                joints.append(Joint(j.name, MOVING[j.type], tidy(origin), axis, _limits(j, zero), _joint_field(j.name)))
                 bodies.append(empty_body())
                 members.append([])
                 damping.append(_dynamics(j, "damping") or Fraction(0))
@@ -361,6 +362,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
         return None
     notes += _angle_notes(log)
     _dynamics_notes(joints, damping, friction, notes)
+    _zero_limit_notes(zero, notes)
     if merged:
         notes.append(f"fixed joints merged into the body of the moving joint above them: {', '.join(merged)}")
     if held:
@@ -396,16 +398,34 @@ def _dynamics_notes(joints: list[Joint], damping: list[Fraction], friction: list
                          f"{'are' if len(given) > 1 else 'is'} {_USE[key]}")
 
 
-def _limits(j: Any) -> Limits:
+def _limits(j: Any, zero: dict[str, list[str]]) -> Limits:
+    """The <limit> of chain joint ``j``; a velocity or effort of 0 is no limit (None), the URDF files'
+    way of writing "none" (a joint that may not move or push could not be driven), and its joint is
+    listed in ``zero`` under "velocity" or "effort" for the note (:func:`_zero_limit_notes`)."""
     lim = j.limit
     if lim is None:
         return Limits()
 
     def f(x: Any) -> Fraction | None:
         return None if x is None else Fraction(repr(float(x)))
+
+    def rate(key: str) -> Fraction | None:
+        x = f(getattr(lim, key))
+        if x == 0:
+            zero[key].append(repr(j.name))
+            return None
+        return x
     if j.type == "continuous":
-        return Limits(velocity=f(lim.velocity), effort=f(lim.effort))
-    return Limits(f(lim.lower), f(lim.upper), f(lim.velocity), f(lim.effort))
+        return Limits(velocity=rate("velocity"), effort=rate("effort"))
+    return Limits(f(lim.lower), f(lim.upper), rate("velocity"), rate("effort"))
+
+
+def _zero_limit_notes(zero: dict[str, list[str]], notes: list[str]) -> None:
+    """One note per key: the joints whose <limit velocity|effort> of 0 was read as no limit."""
+    for key, names in zero.items():
+        if names:
+            notes.append(f"<limit {key}=\"0\"> of joint{'s' if len(names) > 1 else ''} {', '.join(names)} read as "
+                         f"no {key} limit (the same in every command)")
 
 
 def _angle_notes(log: list[tuple[str, str, str]]) -> list[str]:

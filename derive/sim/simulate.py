@@ -33,7 +33,7 @@ from derive.control.pipeline import Derivation
 from derive.control.wrap import wrap_numeric
 from derive.dynamics.program import lambdify
 from derive.sim.backends import ControllerError
-from derive.model.simspec import SimSettings
+from derive.model.simspec import SimSettings, pulse_amplitudes
 from derive.progress import progress
 from derive.sim.plant import SMOOTH, Plant, TruePlant, true_plant  # noqa: F401 (re-exported)
 from derive.sim.start import reference_offset
@@ -95,13 +95,14 @@ def pulse(t: float, start: float, period: float, amplitude: float) -> float:
 
 
 def pulses(s: SimSettings, n: int, steps: int) -> np.ndarray:
-    """The sampled pulse trains r (steps x n), equal to :func:`pulse` at t = k dt."""
+    """The sampled pulse trains r (steps x n), equal to :func:`pulse` at t = k dt, each joint's of its
+    amplitude (derive.model.simspec.pulse_amplitudes: rad, m prismatic)."""
     t = np.arange(steps) * s.sample_time
-    amp = math.radians(s.amplitude_deg)
+    amp = pulse_amplitudes(s, n)
     r = np.zeros((steps, n))
     for i in range(n):
         on = (t >= s.start[i]) & (np.mod(t - s.start[i], s.pulse_period) < s.pulse_period / 2)
-        r[on, i] = amp
+        r[on, i] = amp[i]
     return r
 
 

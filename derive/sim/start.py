@@ -3,8 +3,8 @@ the observer forms take there (issue 20 items 6 and 7).
 
 ``[simulation] reference_start`` (``derive simulate --reference-from-pose``):
 
-* ``"zero"`` (default, the paper's section 5.2): y_d starts at 0 and the pulse train of
-  amplitude ``amplitude_deg`` drives Gr(s) from there. An arm started elsewhere
+* ``"zero"`` (default, the paper's section 5.2): y_d starts at 0 and the pulse train (each
+  joint's ``amplitude``, or ``amplitude_deg`` for all) drives Gr(s) from there. An arm started elsewhere
   (``initial_theta``) sees a step e(0) = -C theta(0) at t = 0;
 * ``"measured"``: y_d starts at the measured pose, y_d(0) = C theta(0), and the pulse train
   is an offset added to it: y_d = C theta(0) + Gr * r (Gr has unit gain at 0, so the filter

@@ -82,7 +82,9 @@ class UrdfChain:
     damping of ``<dynamics damping>`` (0 when absent) and that element's field, the
     Coulomb friction of ``<dynamics friction>`` (None when absent; the simulation's
     default), the warnings (ignored elements that may change the dynamics of the
-    chain: printed by every command) and the links whose inertia was repaired."""
+    chain: printed by every command), the links whose inertia was repaired, and per
+    moving joint the reflected rotor inertia the file gives (an MJCF's ``armature``,
+    the default of motor.rotor_inertia; empty for a URDF, which has none) [kg m^2]."""
 
     chain: Chain
     damping: tuple[Fraction, ...]
@@ -90,6 +92,7 @@ class UrdfChain:
     friction: tuple[Fraction | None, ...] = ()
     warnings: tuple[Problem, ...] = ()
     repaired: tuple[str, ...] = ()
+    armature: tuple[Fraction, ...] = ()
 
 
 def _joint_field(name: str, what: str = "") -> str:
@@ -306,8 +309,11 @@ def _urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, directio
     if r.problems:
         return None
     found = _build(r, robot, base, path, on_path, held, notes, gravity, direction)
-    return None if found is None else replace(found, warnings=tuple(warnings),
-                                              repaired=tuple(name for name, _ in repairs))
+    if found is None:
+        return None
+    chain = replace(found.chain, held=tuple((name, float(value)) for name, value in sorted(held.items())),
+                    repaired=tuple((name, fix.entries) for name, fix in repairs))
+    return replace(found, chain=chain, warnings=tuple(warnings), repaired=tuple(name for name, _ in repairs))
 
 
 def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], locked: dict[str, sp.Expr],
@@ -359,7 +365,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
         r.add("arm.tip_link", "a tip link with at least one revolute, continuous or prismatic joint between it "
               "and base_link", "a chain of fixed joints only")
         return None
-    notes += _angle_notes(log)
+    notes += angle_notes(log)
     _dynamics_notes(joints, damping, friction, notes)
     if merged:
         notes.append(f"fixed joints merged into the body of the moving joint above them: {', '.join(merged)}")
@@ -368,7 +374,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     for j in joints:
         if j.type is JointType.CONTINUOUS:
             notes.append(f"joint {j.name!r} is continuous: one angle, its <limit lower/upper> ignored")
-    params, symbolic = _parameters(bodies, members, joints)
+    params, symbolic = body_parameters(bodies, members, joints)
     vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
     chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes))
     return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints),
@@ -408,7 +414,7 @@ def _limits(j: Any) -> Limits:
     return Limits(f(lim.lower), f(lim.upper), f(lim.velocity), f(lim.effort))
 
 
-def _angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
+def angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
     """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept."""
     out = []
     for kind, head in (("snapped", f"angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 snapped to it "
@@ -435,13 +441,14 @@ def _value(x: sp.Expr) -> Fraction:
     return Fraction(int(x.p), int(x.q))
 
 
-def _parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint]
-                ) -> tuple[list[Parameter], list[Body]]:
-    """The ten body parameters of each body (in F_i), and the bodies in their symbols."""
+def body_parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint], what: str = "urdf link"
+                    ) -> tuple[list[Parameter], list[Body]]:
+    """The ten body parameters of each body (in F_i), and the bodies in their symbols; ``members``:
+    the names of what each body merges (``what``: "urdf link" or "mjcf body"), for the fields."""
     params: list[Parameter] = []
     out = []
     for i, (body, names, joint) in enumerate(zip(bodies, members, joints), 1):
-        where = (f"urdf link{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))} "
+        where = (f"{what}{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))} "
                  f"(at joint {joint.name!r})" if names else f"nothing (at joint {joint.name!r})")
         entries = [body.mass, *body.first_moment] + [body.inertia[a, b] for a, b in _INERTIA_INDEX]
         units = ["kg"] + ["kg m"] * 3 + ["kg m^2"] * 6

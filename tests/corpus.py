@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 CORPUS = Path(__file__).parent / "data" / "urdf" / "corpus"
+MJCF_CORPUS = Path(__file__).parent / "data" / "mjcf" / "menagerie"
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
@@ -26,20 +27,23 @@ class CorpusArm:
     init_options: tuple[str, ...] = ()
     locked: dict = field(default_factory=dict, hash=False, compare=False)
     slow_load: bool = False
+    kind: str = "urdf"    # "urdf" or "mjcf" (tests/data/mjcf/menagerie/corpus.toml)
 
     @property
     def urdf(self) -> Path:
-        return CORPUS / self.file
+        """The arm's file (a URDF, or an MJCF for kind "mjcf")."""
+        return (MJCF_CORPUS if self.kind == "mjcf" else CORPUS) / self.file
 
     @property
     def repair(self) -> bool:
         return "--repair-inertia" in self.init_options
 
 
-def corpus_arms() -> list[CorpusArm]:
-    """Every arm of corpus.toml, in file order."""
-    data = tomllib.loads((CORPUS / "corpus.toml").read_text(encoding="utf-8"))
-    return [CorpusArm(**{**a, "init_options": tuple(a.get("init_options", ()))}) for a in data["arm"]]
+def corpus_arms(kind: str = "urdf") -> list[CorpusArm]:
+    """Every arm of the URDF corpus.toml (``kind`` "urdf") or of the MJCF one ("mjcf"), in file order."""
+    folder = MJCF_CORPUS if kind == "mjcf" else CORPUS
+    data = tomllib.loads((folder / "corpus.toml").read_text(encoding="utf-8"))
+    return [CorpusArm(**{**a, "init_options": tuple(a.get("init_options", ()))}, kind=kind) for a in data["arm"]]
 
 
 def arm_mapping(arm: CorpusArm, n: int | None = None) -> dict:

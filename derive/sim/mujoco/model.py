@@ -130,14 +130,13 @@ def _massless(spec, name: str) -> str:
     """derive's message for a moving body MuJoCo finds massless (module docstring)."""
     body = spec.body(name)
     joints = [j.name for j in body.joints] if body is not None else []
-    moved = f", which joint {joints[0]!r} moves," if joints else ""
-    return (f"expected mass and inertia on body {name!r}{moved} (MuJoCo refuses a moving body whose own mass and "
+    moved = f"moved by joint {joints[0]!r}; " if joints else ""
+    return (f"expected mass and inertia on body {name!r} ({moved}MuJoCo refuses a moving body whose own mass and "
             "inertia, with those welded to it, are below mjMINVAL = 1e-15; derive's plant runs it, as the bodies "
-            f"below give the joint its inertia), got none: give {name!r} an <inertial> with the mass and inertia "
-            "of what it stands for (a motor, a housing; a small one, e.g. 0.01 kg and 1e-6 kg m^2, changes J by "
-            "about that much), or hold the joint"
-            + (f" (locked = {{ {joints[0]} = 0.0 }} under [arm])" if joints else "")
-            + " if it does not move; then derive init again")
+            f"below give the joint its inertia), got none: give {name!r} an <inertial> in the file with the mass "
+            "and inertia of what it stands for (a motor, a housing; even 0.01 kg and 1e-6 kg m^2 is closer to the "
+            "real arm than none), or hold the joint"
+            + (f" (locked = {{ {joints[0]} = 0.0 }} under [arm])" if joints else "") + " if it does not move")
 
 
 def _names(ref, kinds) -> list[str]:

@@ -63,9 +63,10 @@ def ends(parent: dict[str, str], names: list[str], base: str | None, tip: str | 
     """(base, tip): the given ones, else the root and the unique deepest leaf below it; ``parent``:
     child -> parent of the tree's ``names`` (links, or bodies)."""
     roots = [name for name in names if name not in parent]
+    plural = "bodies" if what == "body" else f"{what}s"
     if base is None:
         if len(roots) != 1:
-            raise DeriveError(f"{len(roots)} root {what}s ({', '.join(map(repr, roots))}): choose one with --base")
+            raise DeriveError(f"{len(roots)} root {plural} ({', '.join(map(repr, roots))}): choose one with --base")
         base = roots[0]
     if tip is None:
         depth = {name: _depth_below(parent, name, base) for name in names}
@@ -76,7 +77,7 @@ def ends(parent: dict[str, str], names: list[str], base: str | None, tip: str | 
         deepest = max(d for _, d in leaves)
         found = [name for name, d in leaves if d == deepest]
         if len(found) > 1:
-            raise DeriveError(f"the file has {len(found)} deepest leaf {what}s below {base!r} ({deepest} "
+            raise DeriveError(f"the file has {len(found)} deepest leaf {plural} below {base!r} ({deepest} "
                               f"{'joints' if what == 'link' else 'bodies'} down): {', '.join(map(repr, found))}; "
                               "choose the tip with --tip")
         tip = found[0]

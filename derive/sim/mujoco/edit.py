@@ -32,16 +32,17 @@ def strip_geometry(mj, src, spec) -> dict[str, int]:
 
 def fix_unmoved(mj, spec, base: str | None, chain: set[str], held: dict[str, float]) -> list[str]:
     """Remove, before MuJoCo first compiles the file, every joint derive never moves whose removal
-    leaves its body where derive has it: the joints outside the subtree of the ``base`` body (above
-    or beside the chain: a mobile base, a free joint) and the joints not in ``chain`` held at their
+    leaves its body where derive has it: the joints outside the subtree below the ``base`` body (of the
+    base itself, above or beside the chain: a mobile base, a free joint) and the joints not in ``chain`` held at their
     model value (``held``'s value, default 0, equal to the joint's ``ref``). Return what was held, as
     'name at value'."""
     fixed = []
     for sj in list(spec.joints):
         if sj.name in chain:
             continue
-        body, inside = sj.parent, base is None
-        while body is not None and not inside and body.name != "world":
+        inside = base is None    # the base a strict ancestor of the joint's body: the joint is below the base
+        body = sj.parent.parent if sj.parent is not None and sj.parent.name != "world" else None
+        while body is not None and not inside:
             inside = body.name == base
             body = body.parent if body.name != "world" else None
         moving = sj.type in (mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE)

@@ -26,11 +26,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from derive.dynamics.equations import derive_dynamics
-from derive.dynamics.program import lambdify
 from derive.model.spec import arm_from_dict
 
-from .corpus import CorpusArm, corpus_arms
+from .corpus import CorpusArm, corpus_arms, dynamics_function, random_states
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -63,30 +61,11 @@ def _numeric(arm: CorpusArm):
     except SpecError as exc:   # the controller's w has one entry: the count tells n
         n = int(str(exc).split("array of ")[1].split(" ")[0])
         loaded = arm_from_dict(mapping(arm, n), arm.name)
-    d = derive_dynamics(loaded)
-    n = d.n
-    symbols = [s for s, _ in d.values]
-    values = [float(v) for _, v in d.values]
-    f = lambdify([*d.sym.theta, *d.sym.dtheta, *symbols], list(d.J) + list(d.bias) + list(d.gravity))
-
-    def evaluate(q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        out = np.array(f(*q, *v, *values), dtype=float)
-        return out[:n * n].reshape(n, n), out[n * n:n * n + n], out[n * n + n:]
-    return loaded, evaluate
+    return loaded, dynamics_function(loaded)
 
 
 def _states(loaded) -> list[tuple[np.ndarray, np.ndarray]]:
-    rng = np.random.default_rng(SEED)
-    out = []
-    for _ in range(STATES):
-        q = []
-        for j in loaded.chain.joints:
-            lo, hi = j.limits.lower, j.limits.upper
-            if lo is None or hi is None or hi <= lo:
-                lo, hi = (-math.pi, math.pi) if j.type.rotates else (-0.1, 0.1)
-            q.append(rng.uniform(float(lo), float(hi)))
-        out.append((np.array(q), rng.uniform(-2.0, 2.0, len(q))))
-    return out
+    return random_states(loaded, SEED, STATES)
 
 
 def _close(name: str, where: str, ours: np.ndarray, theirs: np.ndarray) -> None:

@@ -64,29 +64,32 @@ ARM = """<mujoco model="three">
 """
 
 
-def arm_file(folder: Path, extra: str = "", simulation: str = "") -> Path:
+def write_arm(folder: Path, name: str, model: str, head: str, w: int, simulation: str) -> Path:
+    """The arm file ``name``.toml in ``folder``: [arm] with ``head`` (the file's keys), torque actuation,
+    w = 0.5 for each of ``w`` joints, [simulation] ``simulation``; the model file ``model`` beside it."""
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "three.xml").write_text(ARM)
-    path = folder / "three.toml"
+    suffix = "xml" if model.lstrip().startswith("<mujoco") else "urdf"
+    (folder / f"{name}.{suffix}").write_text(model)
+    path = folder / f"{name}.toml"
     path.write_text(f"""[arm]
-name = "three"
-mjcf = "three.xml"
-base_body = "base"
-tip_body = "l3"
+name = "{name}"
+{head}
 gravity = 9.81
 actuation = "torque"
-{extra}
+
 [controller]
 T1 = 0.0
 T2 = 0.2
-w = [0.5, 0.5, 0.5]
+w = [{', '.join(['0.5'] * w)}]
 
 [simulation]
-sample_time = 0.002
-substeps = 4
-duration = 3.0
 {simulation}""")
     return path
+
+
+def arm_file(folder: Path, extra: str = "", simulation: str = "") -> Path:
+    return write_arm(folder, "three", ARM, f'mjcf = "three.xml"\nbase_body = "base"\ntip_body = "l3"\n{extra}', 3,
+                     f"sample_time = 0.002\nsubsteps = 4\nduration = 3.0\n{simulation}")
 
 
 def fullM_equals_J(arm, states: int = 5) -> None:
@@ -180,27 +183,8 @@ URDF = """<robot name="mobile">
 
 
 def urdf_arm(folder: Path, urdf: str = URDF, extra: str = "") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "mobile.urdf").write_text(urdf)
-    path = folder / "mobile.toml"
-    path.write_text(f"""[arm]
-name = "mobile"
-urdf = "mobile.urdf"
-base_link = "base_link"
-tip_link = "hand"
-gravity = 9.81
-actuation = "torque"
-{extra}
-[controller]
-T1 = 0.0
-T2 = 0.2
-w = [0.5, 0.5]
-
-[simulation]
-sample_time = 0.002
-duration = 2.0
-""")
-    return path
+    return write_arm(folder, "mobile", urdf, f'urdf = "mobile.urdf"\nbase_link = "base_link"\ntip_link = "hand"\n{extra}',
+                     2, "sample_time = 0.002\nduration = 2.0\n")
 
 
 def test_repairs_held_joints_and_mimics_reach_mujoco(tmp_path: Path) -> None:

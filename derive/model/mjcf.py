@@ -46,7 +46,6 @@ axis within 1e-12 of a coordinate axis is that axis, any other the nearest ratio
 """
 from __future__ import annotations
 
-from difflib import get_close_matches
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -56,11 +55,11 @@ import sympy as sp
 
 from derive.errors import Problem
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
-from derive.model.fields import Reader, inline, show, to_fraction
+from derive.model.fields import Reader, show
 from derive.model.mjcf_xml import read_mjcf
-from derive.model.rigid import (NEAR_MISS, SNAP_TOLERANCE, axis_angle, body_from_com, empty_body, exact_angle,
+from derive.model.rigid import (NEAR_MISS, SNAP_TOLERANCE, axis_angle, body_from_com, empty_body,
                                 inertia_problem, merge, move, quaternion_rotation, rational, tidy, unit_axis)
-from derive.model.urdf import UrdfChain, body_parameters
+from derive.model.urdf import UrdfChain, body_parameters, locked_table, name_choice
 
 FIELD = "arm.mjcf"
 HINGE, SLIDE, BALL, FREE = 3, 2, 1, 0     # mjtJoint
@@ -106,41 +105,15 @@ class _Tree:
 
 
 def _choice(r: Reader, d: dict, key: str, tree: _Tree) -> int | None:
-    name = d.get(key)
-    bodies = tree.names[1:]
-    if isinstance(name, str) and name in bodies:
-        return bodies.index(name) + 1
-    close = get_close_matches(name, bodies, n=3) if isinstance(name, str) else []
-    hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-    listed = ", ".join(map(repr, bodies[:12])) + (", ..." if len(bodies) > 12 else "")
-    given = "nothing (the key is missing)" if name is None else (
-        f"{show(name)}, not a body of the MJCF{hint}" if isinstance(name, str) else show(name))
-    r.add(f"arm.{key}", f"the name of a body of the MJCF ({listed})", given)
-    return None
+    """The body id ``d[key]`` names, or None after a problem (derive.model.urdf.name_choice)."""
+    name = name_choice(r, d, key, tree.names[1:], "body of the MJCF")
+    return None if name is None else tree.names.index(name, 1)
 
 
 def _locked(r: Reader, value: Any, tree: _Tree) -> dict[str, sp.Expr]:
-    if value is None:
-        return {}
-    if not isinstance(value, dict):
-        r.bad("arm.locked", "a table {joint = value} of joints held at a value (rad or m)", value)
-        return {}
-    kinds = {n: int(tree.m.jnt_type[j]) for j, n in enumerate(tree.joint_names) if n}
-    out = {}
-    for name, v in value.items():
-        f = f"arm.locked.{inline(name) if not isinstance(name, str) else name}"
-        if kinds.get(name) not in (HINGE, SLIDE):
-            close = get_close_matches(name, [n for n, k in kinds.items() if k in (HINGE, SLIDE)], n=2)
-            r.add(f, "the name of a hinge or slide joint of the MJCF"
-                  + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
-                  "an unknown joint" if name not in kinds else "a ball or free joint")
-            continue
-        x = to_fraction(v)
-        if x is None:
-            r.bad(f, "a finite number (rad or m)", v)
-            continue
-        out[name] = exact_angle(x) if kinds[name] == HINGE else rational(x)
-    return out
+    kinds = {n: {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}[int(tree.m.jnt_type[j])]
+             for j, n in enumerate(tree.joint_names) if n}
+    return locked_table(r, value, kinds, {"hinge": True, "slide": False}, "MJCF")
 
 
 def _motion(tree: _Tree, j: int, value: sp.Expr) -> Transform:

@@ -196,41 +196,46 @@ def _tree(r: Reader, robot: Any) -> dict[str, Any] | None:
     return parent
 
 
-def _link_choice(r: Reader, d: dict, key: str, links: list[str]) -> str | None:
+def name_choice(r: Reader, d: dict, key: str, names: list[str], what: str) -> str | None:
+    """``d[key]`` when it is one of ``names`` (``what``: "link of the URDF", "body of the MJCF"), else
+    None after adding a problem of ``arm.<key>`` listing them, with the closest names."""
     name = d.get(key)
-    if not isinstance(name, str) or name not in links:
-        close = get_close_matches(name, links, n=3) if isinstance(name, str) else []
+    if not isinstance(name, str) or name not in names:
+        close = get_close_matches(name, names, n=3) if isinstance(name, str) else []
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        listed = ", ".join(map(repr, links[:12])) + (", ..." if len(links) > 12 else "")
+        listed = ", ".join(map(repr, names[:12])) + (", ..." if len(names) > 12 else "")
         given = "nothing (the key is missing)" if name is None else (
-            f"{show(name)}, not a link of the URDF{hint}" if isinstance(name, str) else show(name))
-        r.add(f"arm.{key}", f"the name of a link of the URDF ({listed})", given)
+            f"{show(name)}, not a {what}{hint}" if isinstance(name, str) else show(name))
+        r.add(f"arm.{key}", f"the name of a {what} ({listed})", given)
         return None
     return name
 
 
-def _locked(r: Reader, value: Any, robot: Any) -> dict[str, sp.Expr]:
+def locked_table(r: Reader, value: Any, kinds: dict[str, str], rotates: dict[str, bool], word: str
+                 ) -> dict[str, sp.Expr]:
+    """``[arm] locked``: joint name -> held value, exact (an angle snapped as derive.model.rigid.exact_angle
+    does); ``kinds``: every joint's type, ``rotates``: the movable types (whether each turns), ``word``:
+    "URDF" or "MJCF". Problems (an unknown or fixed joint, a value not a finite number) added to ``r``."""
     if value is None:
         return {}
     if not isinstance(value, dict):
         r.bad("arm.locked", "a table {joint = value} of joints held at a value (rad or m)", value)
         return {}
-    joints = {j.name: j for j in robot.joints}
+    types = list(rotates)
+    expected = f"the name of a {', '.join(types[:-1])} or {types[-1]} joint of the {word}"
     out = {}
     for name, v in value.items():
         f = f"arm.locked.{inline(name) if not isinstance(name, str) else name}"
-        if name not in joints or joints[name].type not in MOVING:
-            moving = [j for j in joints if joints[j].type in MOVING]
-            close = get_close_matches(name, moving, n=2)
-            r.add(f, "the name of a revolute, continuous or prismatic joint of the URDF"
-                  + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
-                  "an unknown joint" if name not in joints else f"a {joints[name].type} joint")
+        if kinds.get(name) not in rotates:
+            close = get_close_matches(name, [n for n, k in kinds.items() if k in rotates], n=2)
+            r.add(f, expected + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
+                  "an unknown joint" if name not in kinds else f"a {kinds[name]} joint")
             continue
         x = to_fraction(v)
         if x is None:
             r.bad(f, "a finite number (rad or m)", v)
             continue
-        out[name] = exact_angle(x) if joints[name].type != "prismatic" else rational(x)
+        out[name] = exact_angle(x) if rotates[kinds[name]] else rational(x)
     return out
 
 
@@ -273,8 +278,9 @@ def _urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, directio
     notes += doc.notes
     parent = _tree(r, robot)
     links = [link.name for link in robot.links]
-    base, tip = _link_choice(r, d, "base_link", links), _link_choice(r, d, "tip_link", links)
-    locked = _locked(r, d.get("locked"), robot)
+    base, tip = (name_choice(r, d, key, links, "link of the URDF") for key in ("base_link", "tip_link"))
+    locked = locked_table(r, d.get("locked"), {j.name: j.type for j in robot.joints},
+                          {"revolute": True, "continuous": True, "prismatic": False}, "URDF")
     repair = repair_choice(r, d.get("repair_inertia"), links)
     if parent is None or base is None or tip is None or r.problems:
         return None

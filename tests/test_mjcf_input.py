@@ -277,3 +277,11 @@ def test_xacro_that_does_not_expand_is_one_error(tmp_path: Path, capsys) -> None
     src.write_text(XACRO.replace("${reach / 2}", "${undefined_property}"))
     _init_fails(tmp_path, capsys, [str(src), "--xacro-arg", "kind:=small"], "expected a xacro file the xacro "
                 "package expands with kind:=small", "undefined_property")
+
+
+def test_an_mjcf_without_mujoco_installed_is_one_error(tmp_path: Path, capsys, monkeypatch) -> None:
+    """MuJoCo is an optional dependency: reading an MJCF without it names the install command."""
+    path = frames_file(tmp_path)
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    _init_fails(tmp_path, capsys, [str(path), "--base", "base", "--tip", "hand_mount"],
+                "expected the mujoco package to read an MJCF", "pip install 'derive[mujoco]'")

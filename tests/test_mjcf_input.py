@@ -285,3 +285,25 @@ def test_an_mjcf_without_mujoco_installed_is_one_error(tmp_path: Path, capsys, m
     monkeypatch.setitem(sys.modules, "mujoco", None)
     _init_fails(tmp_path, capsys, [str(path), "--base", "base", "--tip", "hand_mount"],
                 "expected the mujoco package to read an MJCF", "pip install 'derive[mujoco]'")
+
+
+def test_xacro_find_resolves_to_the_package_above_the_file(tmp_path: Path, capsys) -> None:
+    """$(find my_description) without ROS: the folder above the xacro file that holds that package's
+    package.xml; a package found nowhere is one error naming it."""
+    pytest.importorskip("xacro")
+    pkg = tmp_path / "src" / "description_checkout"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>my_description</name></package>")
+    (pkg / "urdf" / "macros.xacro").write_text(XACRO.split("<link name=\"base\"/>")[0].split(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="$(arg kind)_arm">')[1].replace(
+        '<xacro:arg name="kind" default="small"/>', "").join(
+        ['<robot xmlns:xacro="http://www.ros.org/wiki/xacro">', "</robot>"]))
+    main_file = pkg / "urdf" / "arm.urdf.xacro"
+    main_file.write_text(XACRO.replace('<xacro:macro name="link"', '<xacro:include filename="$(find my_description)'
+                                       '/urdf/macros.xacro"/>\n  <xacro:macro name="unused"'))
+    out = tmp_path / "arm.toml"
+    assert main(["init", str(main_file), "--xacro-arg", "kind:=small", "--out", str(out)]) == 0, \
+        capsys.readouterr().err
+    assert load_arm(out).n == 2
+    main_file.write_text(main_file.read_text().replace("$(find my_description)", "$(find not_here)"))
+    _init_fails(tmp_path / "src", capsys, [str(main_file), "--xacro-arg", "kind:=small"], "not_here")

@@ -6,7 +6,9 @@
 * xacro (a ``.xacro`` file, or any file with ``--xacro-arg``): expanded by the ``xacro``
   package (ROS's, from PyPI: ``pip install 'derive[xacro]'``) with the ``--xacro-arg NAME:=VALUE``
   arguments, then read as a URDF; the arm file names the expanded URDF, which ``init`` writes
-  beside it (never overwriting).
+  beside it (never overwriting). ``$(find pkg)`` is the nearest folder above the file named ``pkg``
+  or holding a ``package.xml`` of that name (a ROS package checked out without ROS), else ROS's
+  own lookup.
 * MJCF (root element ``<mujoco>``): derive.model.mjcf; ``--base``/``--tip`` are body names
   (base: the one body under the world body, tip: the unique deepest leaf, unless given); gravity
   is the MJCF's ``<option gravity>`` turned into the base body's frame at the model pose.
@@ -136,6 +138,10 @@ def expand_xacro(path: Path, args: list[str]) -> str:
     import io
 
     said = io.StringIO()
+    from xacro import substitution_args
+
+    ros_find = substitution_args._eval_find
+    substitution_args._eval_find = lambda pkg: _package_folder(path, pkg, ros_find)
     try:
         with contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
             doc = xacro.process_file(str(path), mappings=mappings)
@@ -144,7 +150,27 @@ def expand_xacro(path: Path, args: list[str]) -> str:
 
         raise DeriveError(f"{path}: expected a xacro file the xacro package expands with "
                           f"{', '.join(args) or 'no arguments'}, got {type(exc).__name__}: {clip(str(exc))}") from None
+    finally:
+        substitution_args._eval_find = ros_find
     return doc.toprettyxml(indent="  ")
+
+
+def _package_folder(path: Path, pkg: str, ros_find) -> str:
+    """``$(find pkg)`` without a ROS installation: the nearest folder above the xacro file named ``pkg``
+    or holding a package.xml whose <name> is ``pkg``; else ROS's own lookup (ament), whose failure xacro
+    reports."""
+    import re
+
+    for folder in path.resolve().parents:
+        manifest = folder / "package.xml"
+        if folder.name == pkg or (manifest.is_file() and re.search(
+                rf"<name>\s*{re.escape(pkg)}\s*</name>", manifest.read_text(errors="replace"))):
+            return str(folder)
+    try:
+        return ros_find(pkg)
+    except ImportError:
+        raise LookupError(f"$(find {pkg}): no folder above {path.name} is named {pkg!r} or holds its package.xml, "
+                          "and ROS's package index (ament_index_python) is not installed") from None
 
 
 def read_source(args, scratch: Path) -> Source:

@@ -307,3 +307,15 @@ def test_xacro_find_resolves_to_the_package_above_the_file(tmp_path: Path, capsy
     assert load_arm(out).n == 2
     main_file.write_text(main_file.read_text().replace("$(find my_description)", "$(find not_here)"))
     _init_fails(tmp_path / "src", capsys, [str(main_file), "--xacro-arg", "kind:=small"], "not_here")
+
+
+def test_repair_inertia_is_for_urdfs(tmp_path: Path, capsys) -> None:
+    """MuJoCo's compiler refuses a non-physical inertia before derive reads an MJCF: --repair-inertia and
+    repair_inertia say so (one error each)."""
+    from derive.errors import SpecError
+
+    path = frames_file(tmp_path)
+    _init_fails(tmp_path, capsys, [str(path), "--base", "base", "--tip", "hand_mount", "--repair-inertia"],
+                "--repair-inertia: expected a URDF")
+    with pytest.raises(SpecError, match=r"arm\.repair_inertia: expected false or absent for an MJCF"):
+        arm_from_dict({**_mapping(path), "arm": {**_mapping(path)["arm"], "repair_inertia": True}}, "frames")

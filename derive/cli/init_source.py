@@ -227,17 +227,13 @@ def _mjcf(args, path: Path) -> Source:
     if doc is None:
         raise _fail(path, r.problems)
     model = doc.model
-    names = [model.body(b).name for b in range(1, model.nbody)]
-    if any(not name for name in names) and (args.base is None or args.tip is None):
-        names = [name or f"(body {b})" for b, name in enumerate(names, 1)]
+    names = [model.body(b).name or f"(body {b})" for b in range(1, model.nbody)]   # as derive.model.mjcf names them
     parent = {names[b - 1]: names[int(model.body_parentid[b]) - 1] for b in range(1, model.nbody)
               if int(model.body_parentid[b]) != 0}
     base, tip = ends(parent, names, args.base, args.tip, "body")
     size, direction = gravity_in_base(model, base) if base in names else (9.81, (0.0, 0.0, -1.0))
     table = {"mjcf": str(path.resolve()), "base_body": base, "tip_body": tip}
-    from derive.model.rigid import rational
-
-    found = mjcf_chain(r, table, Path("/"), gravity_parameter(Fraction(rational(size).p, rational(size).q)),
+    found = mjcf_chain(r, table, Path("/"), gravity_parameter(Fraction(repr(size))),
                        unit_direction(tuple(Fraction(repr(x)) for x in direction)))
     if found is None:
         raise _fail(path, r.problems, (("arm.base_body", "--base"), ("arm.tip_body", "--tip"),

@@ -454,7 +454,8 @@ def body_parameters(bodies: list[Body], members: list[list[str]], joints: list[J
     params: list[Parameter] = []
     out = []
     for i, (body, names, joint) in enumerate(zip(bodies, members, joints), 1):
-        where = (f"{what}{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))} "
+        plural = what[:-1] + "ies" if what.endswith("y") else what + "s"
+        where = (f"{what if len(names) == 1 else plural} {', '.join(map(repr, names))} "
                  f"(at joint {joint.name!r})" if names else f"nothing (at joint {joint.name!r})")
         entries = [body.mass, *body.first_moment] + [body.inertia[a, b] for a, b in _INERTIA_INDEX]
         units = ["kg"] + ["kg m"] * 3 + ["kg m^2"] * 6

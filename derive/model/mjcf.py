@@ -216,7 +216,7 @@ def _chain_joints(r: Reader, tree: _Tree, path: list[int], locked: dict) -> dict
             kind = "ball" if int(tree.m.jnt_type[j]) == BALL else "free"
             r.add(_field("body", tree.names[b], f"<joint {tree.joint_names[j] or '(unnamed)'!r}>"),
                   "hinge or slide joints on the chain from base to tip (choose a base body below it or a tip body "
-                  f"above it)", f"a {kind} joint")
+                  "above it)", f"a {kind} joint")
         if odd:
             continue
         if len(free) > 1:

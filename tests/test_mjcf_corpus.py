@@ -151,8 +151,8 @@ PIPELINE = [a for a in ARMS if a.pipeline == "test"]
 @pytest.mark.parametrize("arm", PIPELINE, ids=[a.name for a in PIPELINE])
 def test_mjcf_arm_through_init_show_check_and_mujoco(arm: CorpusArm, tmp_path: Path) -> None:
     """The cheap part of ``make corpus`` for one Menagerie arm: derive init on the MJCF, show, check
-    (each exit 0, as benchmarks/corpus.py runs them), then simulate --plant mujoco for 1 s on that same
-    MJCF: the plant is the file, its joints derive's, and every form tracks without failing."""
+    (each exit 0, as benchmarks/corpus.py runs them), then simulate --plant mujoco (NPID and DOBC, 1 s)
+    on that same MJCF: the plant is the file, its joints derive's, and no run fails."""
     sys.path.insert(0, str(Path(__file__).parents[1]))
     from benchmarks.corpus import _derive, run_command
 
@@ -160,12 +160,14 @@ def test_mjcf_arm_through_init_show_check_and_mujoco(arm: CorpusArm, tmp_path: P
     toml = f"{arm.name}.toml"
     for argv in (["init", arm.file, "--base", arm.base, "--tip", arm.tip, "--name", arm.name, "--out", toml],
                  ["show", toml], ["check", toml],
-                 ["simulate", toml, "--plant", "mujoco", "--duration", "1", "--out", "sim", "--json", "m.json"]):
+                 ["simulate", toml, "--plant", "mujoco", "--duration", "1", "--controllers", "npid,dobc", "--out",
+                  "sim", "--json", "m.json"]):
         code, _, _, text, _ = run_command(_derive(*argv), tmp_path, 600)
         assert code == 0, (argv[0], text[-1500:])
     metrics = json.loads((tmp_path / "m.json").read_text())
     plant = metrics["plant"]
     assert plant["name"] == "mujoco" and plant["kind"] == "mjcf" and plant["model"] == arm.file
     assert [j["mujoco"] for j in plant["joints"]] == [j["derive"] for j in plant["joints"]]
+    assert set(metrics["controllers"]) == {"npid", "dobc"}
     assert all("failed" not in c for c in metrics["controllers"].values())
     assert (tmp_path / "sim" / "mujoco_model.xml").is_file()

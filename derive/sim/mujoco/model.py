@@ -311,12 +311,12 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
         except Exception:  # noqa: BLE001 - MuJoCo cannot fuse some degenerate inertias: keep the bodies apart
             spec.compiler.fusestatic = False
             model, used = _compile(mj, src, spec, "model with derive's edits"), spec
-    removed.update({f"MuJoCo warned: {text}": 0 for text in said})
-    xml = written_xml(used, src, coulomb, contacts)
-    if not contacts and (len(used.geoms) or len(used.lights)):   # inert without contacts: not computed
-        for item in [*used.geoms, *used.lights]:
-            used.delete(item)
-        model = _compile(mj, src, used, "model with derive's edits")
+        xml = written_xml(used, src, coulomb, contacts)
+        if not contacts and (len(used.geoms) or len(used.lights)):   # inert without contacts: not computed
+            for item in [*used.geoms, *used.lights]:
+                used.delete(item)
+            model = _compile(mj, src, used, "model with derive's edits")
+    removed.update({f"MuJoCo warned: {text}": 0 for text in dict.fromkeys(said)})
     if model.nv != n:
         raise fail(src, f"expected {n} degrees of freedom once the other joints are held, got {model.nv}")
     qadr = np.array([model.joint(j.name).qposadr[0] for j in mapped], dtype=np.int32)

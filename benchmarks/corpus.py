@@ -1,6 +1,8 @@
-"""The URDF corpus through every command (``make corpus``; a section of ``make bench``).
+"""The URDF and MJCF corpora through every command (``make corpus``; a section of ``make bench``).
 
-For every arm of tests/data/urdf/corpus/corpus.toml, in a temporary folder, as a
+For every arm of tests/data/urdf/corpus/corpus.toml and tests/data/mjcf/menagerie/corpus.toml
+(MuJoCo Menagerie arms: ``derive init`` reads the MJCF, ``simulate`` and ``fmu --plant`` run derive's
+plant; tests/test_mujoco_mjcf.py runs MuJoCo on them), in a temporary folder, as a
 user would: ``derive init`` (the arm's base, tip and init options; a ``locked``
 table written into the arm file after it), ``show``, ``check``, ``generate``,
 then the generated C self-tests (controller and plant, built with gcc under the
@@ -13,7 +15,7 @@ give the one expected refusal (exit 2, the text of corpus.toml's ``refusal``, no
 traceback). Each command runs under a timeout (``CORPUS_TIMEOUT`` seconds,
 default 900); wall time and peak resident memory (``os.wait4``'s ru_maxrss of
 that command's process, started from the small launcher benchmarks/peak.py) are recorded per arm and command, beside Pinocchio's
-URDF load time. ``python -m benchmarks.corpus [--out DIR] [NAME ...]`` writes
+load time of the file (buildModelFromUrdf, buildModelFromMJCF). ``python -m benchmarks.corpus [--out DIR] [NAME ...]`` writes
 ``DIR/corpus.json`` and ``DIR/corpus.md`` (default DIR: build/corpus) and exits
 1 when a command failed.
 """
@@ -31,7 +33,7 @@ from pathlib import Path
 from benchmarks import Goal, Section, table
 from derive.jsonio import dumps
 
-TITLE = "URDF corpus: every arm through every command"
+TITLE = "URDF and MJCF corpus: every arm through every command"
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = float(os.environ.get("CORPUS_TIMEOUT", "900"))
 PEAK = Path(__file__).resolve().with_name("peak.py")   # the launcher that measures a command
@@ -151,19 +153,19 @@ def _python_selfcheck(folder: Path, name: str, arm_file: Path, timeout: float) -
     return run_command([sys.executable, "-c", _PY_CHECK, name, str(arm_file), str(module)], folder, timeout)
 
 
-def _pinocchio_load(urdf: Path) -> float | None:
+def _pinocchio_load(path: Path, kind: str = "urdf") -> float | None:
     try:
         import pinocchio as pin
     except ImportError:
         return None
     start = time.perf_counter()
-    pin.buildModelFromUrdf(str(urdf))
+    (pin.buildModelFromMJCF if kind == "mjcf" else pin.buildModelFromUrdf)(str(path))
     return time.perf_counter() - start
 
 
 def run_arm(arm, folder: Path, timeout: float = TIMEOUT) -> ArmResult:
     """Every command on the corpus arm ``arm`` (tests/corpus.CorpusArm), its URDF already in ``folder``."""
-    result = ArmResult(arm.name, None, arm.expect, _pinocchio_load(arm.urdf))
+    result = ArmResult(arm.name, None, arm.expect, _pinocchio_load(arm.urdf, arm.kind))
     arm_file = folder / f"{arm.name}.toml"
 
     def step(command: str, argv: list[str], refuse: str = "") -> bool:
@@ -237,7 +239,7 @@ def run_corpus(names: tuple[str, ...] = (), timeout: float = TIMEOUT) -> list[Ar
     # checkout with PYTHONDONTWRITEBYTECODE set compiled some 70 modules again (0.1-0.2 s CPU a command)
     compileall.compile_dir(str(ROOT / "derive"), quiet=1)
     results = []
-    for arm in corpus_arms():
+    for arm in corpus_arms() + corpus_arms("mjcf"):
         if names and arm.name not in names:
             continue
         with tempfile.TemporaryDirectory(prefix=f"corpus-{arm.name}-") as tmp:
@@ -309,7 +311,7 @@ def main(argv: list[str]) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "corpus.json").write_text(dumps({"timeout_s": TIMEOUT, "arms": [asdict(r) for r in results]}),
                                      encoding="utf-8")   # strict JSON (derive.jsonio)
-    text = f"# URDF corpus\n\n{markdown(results, TIMEOUT)}\n\n" + "\n".join(g.line() for g in goals(results)) + "\n"
+    text = f"# URDF and MJCF corpus\n\n{markdown(results, TIMEOUT)}\n\n" + "\n".join(g.line() for g in goals(results)) + "\n"
     (out / "corpus.md").write_text(text, encoding="utf-8")
     print(text)
     return 1 if any(not c.ok for r in results for c in r.commands) else 0

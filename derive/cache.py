@@ -57,8 +57,9 @@ def code_files(root: Path) -> list[Path]:
 
 
 def read_files(source: Path) -> list[tuple[str, bytes]] | None:
-    """The arm file's bytes and those of every file it reads (``[arm] urdf``, ``[simulation]
-    mujoco_model``; a missing one as b"missing"); None when the arm file cannot be read."""
+    """The arm file's bytes and those of every file it reads (``[arm] urdf``, ``[arm] mjcf`` and the
+    files it includes, ``[simulation] mujoco_model``; a missing one as b"missing"); None when the arm
+    file cannot be read."""
     try:
         raw = Path(source).read_bytes()
     except OSError:
@@ -68,13 +69,31 @@ def read_files(source: Path) -> list[tuple[str, bytes]] | None:
         data = tomllib.loads(raw.decode("utf-8", errors="replace"))
     except tomllib.TOMLDecodeError:
         return out
-    for table, key in (("arm", "urdf"), ("simulation", "mujoco_model")):
+    for table, key in (("arm", "urdf"), ("arm", "mjcf"), ("simulation", "mujoco_model")):
         name = data.get(table, {}).get(key) if isinstance(data.get(table), dict) else None
         if isinstance(name, str) and name:
             try:
                 out.append((f"{table}.{key}", (Path(source).parent / name).read_bytes()))
             except OSError:
                 out.append((f"{table}.{key}", b"missing"))
+            out += _included(Path(source).parent, name, f"{table}.{key}")
+    return out
+
+
+def _included(folder: Path, name: str, field: str) -> list[tuple[str, bytes]]:
+    """The bytes of the files an MJCF's <include> elements read (none for a URDF or a broken file)."""
+    from derive.model.fields import Reader
+    from derive.model.mjcf_xml import expanded_tree
+
+    if not name.endswith(".xml"):
+        return []
+    _, files = expanded_tree(Reader(), field, name, folder, "")
+    out = []
+    for path in files[1:]:
+        try:
+            out.append((f"{field} <include> {path.name}", path.read_bytes()))
+        except OSError:
+            out.append((f"{field} <include> {path.name}", b"missing"))
     return out
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 CORPUS = Path(__file__).parent / "data" / "urdf" / "corpus"
+MJCF_CORPUS = Path(__file__).parent / "data" / "mjcf" / "menagerie"
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
@@ -26,20 +27,23 @@ class CorpusArm:
     init_options: tuple[str, ...] = ()
     locked: dict = field(default_factory=dict, hash=False, compare=False)
     slow_load: bool = False
+    kind: str = "urdf"    # "urdf" or "mjcf" (tests/data/mjcf/menagerie/corpus.toml)
 
     @property
     def urdf(self) -> Path:
-        return CORPUS / self.file
+        """The arm's file (a URDF, or an MJCF for kind "mjcf")."""
+        return (MJCF_CORPUS if self.kind == "mjcf" else CORPUS) / self.file
 
     @property
     def repair(self) -> bool:
         return "--repair-inertia" in self.init_options
 
 
-def corpus_arms() -> list[CorpusArm]:
-    """Every arm of corpus.toml, in file order."""
-    data = tomllib.loads((CORPUS / "corpus.toml").read_text(encoding="utf-8"))
-    return [CorpusArm(**{**a, "init_options": tuple(a.get("init_options", ()))}) for a in data["arm"]]
+def corpus_arms(kind: str = "urdf") -> list[CorpusArm]:
+    """Every arm of the URDF corpus.toml (``kind`` "urdf") or of the MJCF one ("mjcf"), in file order."""
+    folder = MJCF_CORPUS if kind == "mjcf" else CORPUS
+    data = tomllib.loads((folder / "corpus.toml").read_text(encoding="utf-8"))
+    return [CorpusArm(**{**a, "init_options": tuple(a.get("init_options", ()))}, kind=kind) for a in data["arm"]]
 
 
 def arm_mapping(arm: CorpusArm, n: int | None = None) -> dict:
@@ -85,3 +89,42 @@ def urdf_with_inertias(arm: CorpusArm, tensors: dict[str, tuple], folder: Path) 
     path = folder / arm.file
     tree.write(path)
     return path
+
+
+def dynamics_function(loaded):
+    """J, the bias and g of ``loaded``'s dynamics (derive.model.spec.Arm) as one numeric function of
+    (q, v): evaluate(q, v) -> (J (n x n), bias (n), g (n)) at the arm's parameter values."""
+    import numpy as np
+
+    from derive.dynamics.equations import derive_dynamics
+    from derive.dynamics.program import lambdify
+
+    d = derive_dynamics(loaded)
+    n = d.n
+    symbols = [s for s, _ in d.values]
+    values = [float(v) for _, v in d.values]
+    f = lambdify([*d.sym.theta, *d.sym.dtheta, *symbols], list(d.J) + list(d.bias) + list(d.gravity))
+
+    def evaluate(q, v):
+        out = np.array(f(*q, *v, *values), dtype=float)
+        return out[:n * n].reshape(n, n), out[n * n:n * n + n], out[n * n + n:]
+    return evaluate
+
+
+def random_states(loaded, seed: int, count: int) -> list:
+    """``count`` seeded states (q within each joint's limits, else +-pi or +-0.1 m; v in +-2) of ``loaded``."""
+    import math
+
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        q = []
+        for j in loaded.chain.joints:
+            lo, hi = j.limits.lower, j.limits.upper
+            if j.type.value == "continuous" or lo is None or hi is None or hi <= lo:
+                lo, hi = (-math.pi, math.pi) if j.type.rotates else (-0.1, 0.1)
+            q.append(rng.uniform(float(lo), float(hi)))
+        out.append((np.array(q), rng.uniform(-2.0, 2.0, len(q))))
+    return out

@@ -23,14 +23,13 @@ import numpy as np
 import pytest
 
 from derive.cli import main
-from derive.dynamics.equations import derive_dynamics
-from derive.dynamics.program import lambdify
 from derive.model.inertia_repair import nearest_physical
 from derive.model.fields import Reader
 from derive.model.spec import SPATIAL_DOWN, arm_from_dict, gravity_parameter, unit_direction
 from derive.model.urdf import urdf_chain
 
-from .corpus import INERTIA_KEYS, CorpusArm, arm_mapping, corpus_arms, held_values, urdf_with_inertias
+from .corpus import (INERTIA_KEYS, CorpusArm, arm_mapping, corpus_arms, dynamics_function, held_values, random_states,
+                     urdf_with_inertias)
 
 pin = pytest.importorskip("pinocchio")
 
@@ -50,15 +49,7 @@ def _numeric(arm: CorpusArm):
     """derive's arm, and J, bias, g of its dynamics as one numeric function of (q, v)."""
     n = _count(arm)
     loaded = arm_from_dict(arm_mapping(arm, n), f"corpus {arm.name}", arm.urdf.parent)
-    d = derive_dynamics(loaded)
-    symbols = [s for s, _ in d.values]
-    values = [float(v) for _, v in d.values]
-    f = lambdify([*d.sym.theta, *d.sym.dtheta, *symbols], list(d.J) + list(d.bias) + list(d.gravity))
-
-    def evaluate(q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        out = np.array(f(*q, *v, *values), dtype=float)
-        return out[:n * n].reshape(n, n), out[n * n:n * n + n], out[n * n + n:]
-    return loaded, evaluate
+    return loaded, dynamics_function(loaded)
 
 
 def _count(arm: CorpusArm) -> int:
@@ -105,17 +96,7 @@ def _pinocchio(arm: CorpusArm, loaded, tmp_path: Path):
 
 
 def _states(loaded) -> list[tuple[np.ndarray, np.ndarray]]:
-    rng = np.random.default_rng(SEED)
-    out = []
-    for _ in range(STATES):
-        q = []
-        for j in loaded.chain.joints:
-            lo, hi = j.limits.lower, j.limits.upper
-            if j.type.value == "continuous" or lo is None or hi is None or hi <= lo:
-                lo, hi = (-math.pi, math.pi) if j.type.rotates else (-0.1, 0.1)
-            q.append(rng.uniform(float(lo), float(hi)))
-        out.append((np.array(q), rng.uniform(-2.0, 2.0, len(q))))
-    return out
+    return random_states(loaded, SEED, STATES)
 
 
 def _to_pin(model, loaded, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:

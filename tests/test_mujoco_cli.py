@@ -144,8 +144,8 @@ MJCF = """<mujoco model="pendulum">
 """
 
 
-def _mjcf(folder: Path, j1="joint1", j2="joint2", kind="hinge", sibling="") -> Path:
-    arm = arm_copy(folder, "double_pendulum", extra='mujoco_model = "pendulum.xml"\n')
+def _mjcf(folder: Path, j1="joint1", j2="joint2", kind="hinge", sibling="", extra="") -> Path:
+    arm = arm_copy(folder, "double_pendulum", extra='mujoco_model = "pendulum.xml"\n' + extra)
     (folder / "pendulum.xml").write_text(MJCF.format(j1=j1, j2=j2, kind=kind, sibling=sibling))
     return arm
 
@@ -155,8 +155,11 @@ def test_an_mjcf_is_read_without_its_meshes_and_its_own_actuators(tmp_path):
     its own): MuJoCo integrates it with derive's drives, its meshes, actuator and sensor removed
     (said in the description), its damping kept (friction "file"), and a pendulum of its numbers
     follows derive's plant of the same numbers within the stated tolerance when derive's damping is
-    the MJCF's (friction "off" sets derive's)."""
-    arm = load_arm(_mjcf(tmp_path))
+    the MJCF's (friction "off" sets derive's). Contacts only when [simulation] mujoco_contacts asks."""
+    plain = load_arm(_mjcf(tmp_path / "plain"))
+    assert not any("contacts" in x for x in select(plain, "mujoco", "file").describe(derive(plain), plain.simulation)[
+        "beyond_derive"])
+    arm = load_arm(_mjcf(tmp_path, extra="mujoco_contacts = true\n"))
     d = derive(arm)
     mj = select(arm, "mujoco", "file")
     desc = mj.describe(d, arm.simulation)
@@ -299,12 +302,13 @@ def test_an_mjcf_body_whose_inertia_comes_from_a_mesh_is_one_error(tmp_path, cap
 
 BAD_MJCF = {
     "malformed": ("<mujoco><worldbody>", "expected well-formed XML"),
-    "include": ('<mujoco><include file="other.xml"/></mujoco>', "with <include>"),
+    "include": ('<mujoco><include file="other.xml"/></mujoco>', "<include file='other.xml'> in pendulum.xml: "
+                "expected a readable MJCF file"),
     "unphysical": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling="").replace(
         'diaginertia="0.01 0.01 0.001"', 'diaginertia="0.01 0.001 0.1"'), "MuJoCo could not compile the file"),
     "held after moving": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling="").replace(
         '<joint name="joint2" type="hinge" axis="1 0 0" damping="0.3"/>',
-        '<joint name="joint2" type="hinge" axis="1 0 0" damping="0.3"/><joint name="extra" axis="0 1 0"/>'),
+        '<joint name="joint2" type="hinge" axis="1 0 0" damping="0.3"/><joint name="extra" type="ball"/>'),
         "expected the held joints of body 'link2' before its moving ones"),
     "locked ball": (MJCF.format(j1="joint1", j2="joint2", kind="hinge", sibling=(
         '<body name="wrist"><joint name="joint3" type="ball"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>'
@@ -314,8 +318,9 @@ BAD_MJCF = {
 
 @pytest.mark.parametrize("case", sorted(BAD_MJCF))
 def test_bad_mjcf_is_one_error(tmp_path, capsys, case):
-    """Malformed XML, an <include>, an inertia MuJoCo refuses, a joint held after a moving one in
-    the same body, a ball joint held at a value: one clear error each, exit 2, nothing written."""
+    """Malformed XML, a missing <include>, an inertia MuJoCo refuses, a ball joint held after a moving one in
+    the same body (a hinge held at 0 there is removed exactly), a ball joint held at a value: one clear
+    error each, exit 2, nothing written."""
     text, words = BAD_MJCF[case]
     arm = arm_copy(tmp_path, "double_pendulum", extra='mujoco_model = "pendulum.xml"\n')
     if case == "locked ball":

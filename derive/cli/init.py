@@ -44,13 +44,18 @@ DIGITS = 4                   # significant digits of W as written (derive.contro
 
 
 def add_arguments(parser) -> None:
-    """CLI: derive init URDF [--base LINK] [--tip LINK] [--out FILE] [--name NAME]."""
-    parser.add_argument("urdf", help="the URDF file of the arm")
-    parser.add_argument("--base", help="the link the chain starts from (default: the URDF's root link)")
-    parser.add_argument("--tip", help="the link the chain ends at (default: the unique deepest leaf)")
-    parser.add_argument("--out", help="the arm file to write (default: <urdf name>.toml beside the URDF); "
+    """CLI: derive init FILE [--base LINK] [--tip LINK] [--out FILE] [--name NAME] [--xacro-arg NAME:=VALUE]."""
+    parser.add_argument("urdf", metavar="FILE", help="the arm's URDF, xacro (.xacro; expanded by the xacro package) "
+                        "or MJCF (MuJoCo's XML, root element <mujoco>) file")
+    parser.add_argument("--base", help="the link (MJCF: body) the chain starts from (default: the root)")
+    parser.add_argument("--tip", help="the link (MJCF: body) the chain ends at (default: the unique deepest leaf)")
+    parser.add_argument("--out", help="the arm file to write (default: <file name>.toml beside the file); "
                         "never overwritten")
-    parser.add_argument("--name", help="the arm's name (default: from the URDF's robot name)")
+    parser.add_argument("--name", help="the arm's name (default: the URDF's robot name or the MJCF's model name, "
+                        "else the file's name)")
+    parser.add_argument("--xacro-arg", action="append", metavar="NAME:=VALUE",
+                        help="an argument of a xacro file (repeat it for several, e.g. --xacro-arg ur_type:=ur10e); "
+                        "the expanded URDF is written beside the arm file")
     parser.add_argument("--repair-inertia", action="store_true",
                         help="move each inertia of the chain that is not physical (not positive semi-definite, or "
                         "breaking the triangle inequality) to the nearest physical one and write repair_inertia "
@@ -79,44 +84,11 @@ def _name(robot: str, given: str | None, what: str = "the URDF's robot name") ->
                   f"ASCII letters, digits and '_'): the arm is named {name!r} (--name chooses another)")
 
 
-def _ends(robot, base: str | None, tip: str | None) -> tuple[str, str]:
-    """(base, tip): the given ones, else the root link and the unique deepest leaf."""
-    parent = {j.child: j.parent for j in robot.joints}
-    links = [link.name for link in robot.links]
-    roots = [name for name in links if name not in parent]
-    if base is None:
-        if len(roots) != 1:
-            raise DeriveError(f"{len(roots)} root links ({', '.join(map(repr, roots))}): choose one with --base")
-        base = roots[0]
-    if tip is None:
-        below = {name for name in links if _depth_below(parent, name, base) is not None}
-        has_child = {j.parent for j in robot.joints}
-        leaves = [(name, _depth_below(parent, name, base)) for name in links if name in below and name not in has_child]
-        if not leaves:
-            raise DeriveError(f"no link below base link {base!r}: choose the chain's ends with --base and --tip")
-        deepest = max(d for _, d in leaves)
-        found = [name for name, d in leaves if d == deepest]
-        if len(found) > 1:
-            raise DeriveError(f"the URDF has {len(found)} deepest leaf links below {base!r} ({deepest} joints down): "
-                              f"{', '.join(map(repr, found))}; choose the tip with --tip")
-        tip = found[0]
-    return base, tip
-
-
-def _depth_below(parent: dict[str, str], link: str, base: str) -> int | None:
-    depth = 0
-    while link != base:
-        if link not in parent or depth > len(parent):
-            return None
-        link, depth = parent[link], depth + 1
-    return depth
-
-
 def _num(x: Fraction | None, unit: str) -> str:
     return "none" if x is None else f"{float(x):g} {unit}".rstrip()
 
 
-def _limits_comment(joint) -> str:
+def _limits_comment(joint, word: str = "URDF") -> str:
     lim, unit = joint.limits, "m" if not joint.type.rotates else "rad"
     parts = []
     if lim.lower is not None or lim.upper is not None:
@@ -125,7 +97,7 @@ def _limits_comment(joint) -> str:
         parts.append(f"velocity {_num(lim.velocity, unit + '/s')}")
     if lim.effort is not None:
         parts.append(f"effort {_num(lim.effort, 'N m' if joint.type.rotates else 'N')}")
-    return "; ".join(parts) if parts else "no limits in the URDF"
+    return "; ".join(parts) if parts else f"no limits in the {word}"
 
 
 def _g(x: float) -> str:
@@ -153,58 +125,76 @@ def _description(name: str, urdf_name: str, base: str, tip: str) -> str:
     return f"{name} from a URDF"
 
 
-def starter_text(urdf_rel: str, urdf_name: str, name: str, base: str, tip: str, chain, damping,
-                 repaired: tuple[str, ...] = (), gain=None, notes: tuple[str, ...] = (),
+def _vector(values) -> str:
+    return "[" + ", ".join(repr(float(x)) if x != int(x) else str(int(x)) for x in values) + "]"
+
+
+def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple[str, ...] = (),
                  substeps: int | None = None, pose=None, loads=None) -> str:
-    """The arm file for a chain read from a URDF (see the module docstring). ``repaired``: the
-    links whose inertia ``derive init --repair-inertia`` repaired. ``gain``: the
-    derive.control.starter.StarterGain to write (None: a draft whose W is J's scale-free
-    placeholder, for reading the chain back). ``notes``: init's own notes (the name's), written
-    before the chain's."""
+    """The arm file for the chain of ``src`` (derive.cli.init_source.Source; see the module
+    docstring), naming ``rel`` (the file's path relative to the arm file; default: ``src.path``).
+    ``gain``: the derive.control.starter.StarterGain to write (None: a draft whose W is J's
+    scale-free placeholder, for reading the chain back). ``notes``: init's own notes (the
+    name's), written before the chain's."""
+    chain, found, word = src.found.chain, src.found, src.word
+    key, base_key, tip_key = src.keys
     n = chain.n
     box, assumed = speed_box(chain)
+    if src.assumed_gravity:
+        gravity = ["gravity = 9.81                  # m/s^2, assumption: Earth's",
+                   "gravity_direction = [0, 0, -1]  # assumption: the base link's z axis points up"]
+    else:
+        gravity = [f"gravity = {src.gravity!r}" + " " * max(1, 22 - len(f"{src.gravity!r}"))
+                   + f"# m/s^2: the {word}'s <option gravity>",
+                   f"gravity_direction = {_vector(src.direction)}  # the {word}'s gravity in the base body's frame"]
     lines = [
-        f"# Arm file written by `derive init` from {urdf_name}. Values the URDF does not give are",
+        f"# Arm file written by `derive init` from {src.shown}. Values the {word} does not give are",
         "# assumptions, marked as such: check them against your hardware. Then: derive generate <this file>",
+    ] + ([f"# {rel or src.path} is the expansion of `{src.xacro}` by the xacro package"] if src.xacro else []) + [
         "",
         "[arm]",
         f"name = {_string(name)}",
-        f"description = {_string(_description(name, urdf_name, base, tip))}",
-        f"urdf = {_string(urdf_rel)}",
-        f"base_link = {_string(base)}",
-        f"tip_link = {_string(tip)}",
-        "gravity = 9.81                  # m/s^2, assumption: Earth's",
-        "gravity_direction = [0, 0, -1]  # assumption: the base link's z axis points up",
+        f"description = {_string(_description(name, src.shown, src.base, src.tip))}",
+        f"{key} = {_string(rel if rel is not None else str(src.path.resolve()))}",
+        f"{base_key} = {_string(src.base)}",
+        f"{tip_key} = {_string(src.tip)}",
+        *gravity,
         'actuation = "torque"            # u is the motor torque [N m]: B = diag(gear_ratio), no back-EMF',
         "# locked = { joint_name = 0.0 } # hold joints (rad or m); joints off the chain are held at 0",
-    ] + ([f"repair_inertia = [{', '.join(map(_string, repaired))}]  # their inertias are not "
-          "physical: moved to the nearest physical ones (see the notes below)"] if repaired else []) + [
+    ] + ([f"repair_inertia = [{', '.join(map(_string, found.repaired))}]  # their inertias are not "
+          "physical: moved to the nearest physical ones (see the notes below)"] if found.repaired else []) + [
         "",
-        "# What reading the URDF did:",
+        f"# What reading the {word} did:",
     ]
     lines += [f"#   {note}" for note in (*notes, *chain.notes)] or ["#   nothing to note"]
-    for i, (joint, bv) in enumerate(zip(chain.joints, damping), 1):
+    armature = found.armature or (0,) * n
+    for i, (joint, bv, a) in enumerate(zip(chain.joints, found.damping, armature), 1):
         effort = joint.limits.effort
         unit = "N m" if joint.type.rotates else "N"
+        rotor = (f"rotor_inertia = {float(a):g}" + " " * max(1, 15 - len(f"{float(a):g}"))
+                 + f"# kg m^2: the {word}'s armature (the rotor inertia reflected to the joint)") if a else \
+            "rotor_inertia = 0.0             # kg m^2, assumption: no reflected rotor inertia"
+        limit = "effort limit" if src.kind == "urdf" else "actuator force limit"
+        damping = "<dynamics damping>" if src.kind == "urdf" else "damping"
         lines += [
             "",
-            f"[[motor]]  # joint {i}: {joint.name!r} ({joint.type.value}; {_limits_comment(joint)})",
+            f"[[motor]]  # joint {i}: {joint.name!r} ({joint.type.value}; {_limits_comment(joint, word)})",
             "gear_ratio = 1.0                # assumption: u is the joint torque",
-            "rotor_inertia = 0.0             # kg m^2, assumption: no reflected rotor inertia",
+            rotor,
             f"torque_limit = {float(effort):g}" + " " * max(1, 16 - len(f"{float(effort):g}"))
-            + f"# {unit}: the URDF's effort limit; u is clipped to it" if effort is not None and effort > 0
-            else f"# torque_limit = 10.0          # {unit}: uncomment to clip u (the URDF gives no effort limit)",
+            + f"# {unit}: the {word}'s {limit}; u is clipped to it" if effort is not None and effort > 0
+            else f"# torque_limit = 10.0          # {unit}: uncomment to clip u (the {word} gives no effort limit)",
             f"# viscous_friction = {float(bv):g}" + " " * max(1, 10 - len(f"{float(bv):g}"))
-            + f"# {unit} s/{'rad' if joint.type.rotates else 'm'}; default: the URDF's <dynamics damping>",
+            + f"# {unit} s/{'rad' if joint.type.rotates else 'm'}; default: the {word}'s {damping}",
         ]
     speeds = ", ".join(f"{v:g}" for v in box)
     guessed = [str(i) for i, a in enumerate(assumed, 1) if a]
     if guessed:
-        source = (f"the URDF's velocity limits; joint{'s' if len(guessed) > 1 else ''} {', '.join(guessed)}: "
-                  f"assumption, {DEFAULT_SPEED:g} rad/s ({DEFAULT_TRAVEL_SPEED:g} m/s if prismatic), the URDF "
+        source = (f"the {word}'s velocity limits; joint{'s' if len(guessed) > 1 else ''} {', '.join(guessed)}: "
+                  f"assumption, {DEFAULT_SPEED:g} rad/s ({DEFAULT_TRAVEL_SPEED:g} m/s if prismatic), the {word} "
                   "gives no velocity limit")
     else:
-        source = "the URDF's velocity limits"
+        source = f"the {word}'s velocity limits"
     lines += [
         "",
         "[controller]",
@@ -310,58 +300,71 @@ def _umask() -> int:
     return mask
 
 
-def run(args) -> int:
-    from derive.model.fields import Reader
-    from derive.model.spec import SPATIAL_DOWN, gravity_parameter, unit_direction
-    from derive.model.urdf import urdf_chain
-    from derive.model.urdf_xml import parse_safely
-
-    urdf = Path(args.urdf)
-    if args.out and not Path(args.out).parent.is_dir():   # before reading anything
-        raise DeriveError(f"--out: expected a file in an existing folder, got {args.out} "
-                          f"(no folder {Path(args.out).parent})")
-    r = Reader()
-    doc = parse_safely(r, args.urdf, Path.cwd(), "the path as given on the command line")
-    robot = None if doc is None else doc.robot
-    if robot is None:
-        raise SpecError(str(urdf), [type(p)(p.field.replace("arm.urdf", "urdf"), p.expected, p.given)
-                                    for p in r.problems])
-    base, tip = _ends(robot, args.base, args.tip)
-    table = {"urdf": str(urdf.resolve()), "base_link": base, "tip_link": tip,
-             "repair_inertia": bool(getattr(args, "repair_inertia", False))}
-    found = urdf_chain(r, table, Path("/"), gravity_parameter(Fraction(981, 100)), unit_direction(SPATIAL_DOWN))
-    if found is None:
-        raise SpecError(str(urdf), [type(p)(p.field.replace("arm.base_link", "--base").replace(
-            "arm.tip_link", "--tip"), p.expected, p.given) for p in r.problems])
-    import sympy as sp
-
-    from derive.model.spec import unmoved_inertia
-
-    values = {p.symbol: p.rational for p in found.chain.parameters}
-    if (problem := unmoved_inertia(found.chain, [sp.Integer(0)] * found.chain.n, values)) is not None:
-        raise SpecError(str(urdf), [problem])   # the starter file (no rotor inertia) would not load
-    out = Path(args.out) if args.out else urdf.with_suffix(".toml")
-    if out.exists() or out.is_symlink():   # before the minutes the derivation may take
-        _write_new(out, "")
-    rel = os.path.relpath(urdf.resolve(), out.resolve().parent).replace(os.sep, "/")
-    name, renamed = _name(robot.name or urdf.stem, args.name,
-                          "the URDF's robot name" if robot.name else "the URDF file's name")
-    notes = (renamed,) if renamed else ()
-    draft = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, notes=notes)
+def _numbers(src, name: str, notes: tuple[str, ...], out: Path) -> str:
+    """The starter text with its numbers: W and the sample time, fitted to the stated limits, the start
+    pose, the loads and the RK4 substeps (derive.cli.init_numbers); the file named by its absolute path."""
     from derive.cli.init_numbers import choose_gain, rk4_substeps, starter_loads, starter_pose, stated_limits
-
-    gain, _ = choose_gain(draft, out, found.chain)
-    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes)
     from derive.control.starter import fit_to_limits
 
-    stated, d = stated_limits(text, out)
+    gain, _ = choose_gain(starter_text(src, name, notes=notes), out, src.found.chain)
+    stated, d = stated_limits(starter_text(src, name, gain=gain, notes=notes), out)
     gain = fit_to_limits(gain, stated)
     pose = starter_pose(d)
     loads = starter_loads(d, pose[0] if pose else None)
     substeps = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
-    text = starter_text(rel, urdf.name, name, base, tip, found.chain, found.damping, found.repaired, gain, notes,
-                        substeps if substeps > SimSettings.substeps else None, pose, loads)   # defaults unsaid
-    _write_new(out, text)
+    return starter_text(src, name, gain=gain, notes=notes, substeps=substeps if substeps > SimSettings.substeps
+                        else None, pose=pose, loads=loads)   # defaults unsaid
+
+
+def _default_out(path: Path) -> Path:
+    """<file name>.toml beside the file (``ur.urdf.xacro`` -> ``ur.toml``)."""
+    stem = path.name
+    for suffix in (".urdf.xacro", ".xacro", ".urdf", ".xml"):
+        if stem.endswith(suffix) and len(stem) > len(suffix):
+            stem = stem[:-len(suffix)]
+            break
+    else:
+        stem = path.stem or stem
+    return path.parent / f"{stem}.toml"
+
+
+def run(args) -> int:
+    import sympy as sp
+
+    from derive.cli.init_source import read_source
+    from derive.model.rigid import rational
+    from derive.model.spec import unmoved_inertia
+
+    given = Path(args.urdf)
+    if args.out and not Path(args.out).parent.is_dir():   # before reading anything
+        raise DeriveError(f"--out: expected a file in an existing folder, got {args.out} "
+                          f"(no folder {Path(args.out).parent})")
+    out = Path(args.out) if args.out else _default_out(given)
+    with tempfile.TemporaryDirectory(prefix="derive-init-") as scratch:
+        src = read_source(args, Path(scratch))
+        found = src.found
+        expanded = out.with_suffix(".urdf") if src.expanded is not None else None
+        values = {p.symbol: p.rational for p in found.chain.parameters}
+        rotors = [rational(a) for a in found.armature] or [sp.Integer(0)] * found.chain.n
+        if (problem := unmoved_inertia(found.chain, rotors, values)) is not None:
+            raise SpecError(str(given), [problem])   # the starter file would not load
+        for path in (out, expanded):   # before the minutes the derivation may take
+            if path is not None and (path.exists() or path.is_symlink()):
+                _write_new(path, "")
+        name, renamed = _name(src.robot or src.path.name.split(".")[0], args.name, src.whence)
+        notes = (renamed,) if renamed else ()
+        text = _numbers(src, name, notes, out)
+        final = expanded.name if expanded is not None else \
+            os.path.relpath(src.path.resolve(), out.resolve().parent).replace(os.sep, "/")
+        text = text.replace(f" = {_string(str(src.path.resolve()))}\n", f" = {_string(final)}\n", 1)
+        if expanded is not None:
+            _write_new(expanded, src.expanded)
+        try:
+            _write_new(out, text)
+        except DeriveError:
+            if expanded is not None:
+                expanded.unlink()   # nothing half-written
+            raise
     for p in found.warnings:
         print(f"derive: warning: {p}", file=sys.stderr)
     for note in notes:
@@ -369,6 +372,9 @@ def run(args) -> int:
     for note in found.chain.notes:
         if "inertia repaired" in note:
             print(f"derive: note: {note}", file=sys.stderr)
+    if expanded is not None:
+        print(f"derive: wrote {expanded} (the expansion of {src.xacro})", file=sys.stderr)
+    base, tip = src.base, src.tip
     print(f"derive: wrote {out} ({found.chain.n} joints from {base!r} to {tip!r}); next: derive generate {out}",
           file=sys.stderr)
     return 0

@@ -161,7 +161,13 @@ class Chain:
     the base frame [m/s^2]; parameters: every symbol the joints, bodies,
     actuators and gravity use, in canonical order, with its value; notes: what
     normalisation did to the input (axes normalised, fixed joints merged,
-    off-chain joints locked), one sentence each, for the user.
+    off-chain joints locked), one sentence each, for the user. For a chain read
+    from a file (URDF, MJCF), what a plant integrating that file must do to be
+    this chain (derive.sim.mujoco): ``held``, every moving joint of the file that
+    is not a chain joint, with the value it is held at [rad or m] (locked, a
+    mimic's rule, else 0); ``repaired``, the links whose inertia derive repaired,
+    with the tensor used (ixx, ixy, ixz, iyy, iyz, izz about the centre of mass,
+    in the inertial frame) [kg m^2].
     """
 
     joints: tuple[Joint, ...]
@@ -170,6 +176,8 @@ class Chain:
     parameters: tuple[Parameter, ...]
     notes: tuple[str, ...] = ()
     actuators: tuple[Actuator, ...] = ()
+    held: tuple[tuple[str, float], ...] = ()
+    repaired: tuple[tuple[str, tuple[Fraction, ...]], ...] = ()
 
     @property
     def n(self) -> int:

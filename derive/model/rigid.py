@@ -312,3 +312,50 @@ def _sign(x: sp.Expr) -> int:
         return 1 if x > 0 else (-1 if x < 0 else 0)
     v = sp.N(x, 50)
     return 0 if abs(v) < sp.Float("1e-40") else (1 if v > 0 else -1)
+
+
+# -- rotations and directions given as doubles (MuJoCo's compiled model) ---------------------
+
+_ROUNDING = 1e-12     # a compiled double this close to an exact 0 or +-1 is that number, unsaid
+
+
+def quaternion_rotation(q) -> tuple[sp.ImmutableMatrix, float | None]:
+    """An exact rotation of a quaternion (w, x, y, z; doubles, as MuJoCo's compiler gives them)
+    and how far it was moved: the signed permutation (a rotation of multiples of pi/2) when the
+    quaternion's rotation is within ``SNAP_TOLERANCE`` of one, with the distance moved (the largest
+    entry-wise difference, about the angle in rad); else R(q) / |q|^2 of the quaternion's entries as
+    exact decimals (:func:`rational`): exactly orthogonal, the quaternion's own rotation, with the
+    distance to the nearest signed permutation when within ``NEAR_MISS`` of one (kept), else None."""
+    w, x, y, z = (float(c) for c in q)
+    n = w * w + x * x + y * y + z * z
+    R = [[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+         [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+         [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]
+    R = [[e / n for e in row] for row in R]
+    P = [[float(round(e)) for e in row] for row in R]
+    off = max(abs(R[i][j] - P[i][j]) for i in range(3) for j in range(3))
+    permutation = all(sorted(abs(e) for e in row) == [0.0, 0.0, 1.0] for row in P) and \
+        all(sum(abs(P[i][j]) for i in range(3)) == 1.0 for j in range(3))
+    if permutation and sp.Matrix(P).det() == 1 and off <= SNAP_TOLERANCE:
+        return sp.ImmutableMatrix([[int(e) for e in row] for row in P]), off
+    a, b, c, d = (rational(float(v)) for v in q)
+    m = a * a + b * b + c * c + d * d
+    rows = [[a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+            [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
+            [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d]]
+    return sp.ImmutableMatrix([[e / m for e in row] for row in rows]), (off if permutation and off <= NEAR_MISS
+                                                                           else None)
+
+
+def unit_axis(v) -> tuple[sp.ImmutableMatrix, bool]:
+    """An exact unit vector of a unit 3-vector of doubles (a compiled joint axis): +-e_k when within
+    1e-12 of it, else :func:`rational_unit` of its exact decimals; and whether it was exact already."""
+    values = [float(x) for x in v]
+    k = max(range(3), key=lambda i: abs(values[i]))
+    if abs(abs(values[k]) - 1.0) <= _ROUNDING and all(abs(values[i]) <= _ROUNDING for i in range(3) if i != k):
+        out = [0, 0, 0]
+        out[k] = 1 if values[k] > 0 else -1
+        return sp.ImmutableMatrix(out), True
+    exact = sp.Matrix([rational(x) for x in values])
+    root = sp.sqrt((exact.T * exact)[0, 0])
+    return rational_unit(exact), bool(root == 1)

@@ -31,7 +31,9 @@ voltage_constant_scale  [1, ...]           factor on each motor's voltage consta
 resistance_scale    [1, ...]               factor on each motor's resistance
 mujoco_model        ""                     the MJCF (or URDF) MuJoCo integrates under
                                            ``--plant mujoco``, relative to the arm file;
-                                           "" = the arm's own URDF (derive.sim.mujoco)
+                                           "" = the arm's own URDF or MJCF (derive.sim.mujoco)
+mujoco_contacts     false                  MuJoCo's contacts between an MJCF's primitive
+                                           geoms under ``--plant mujoco`` (default: off)
 ==================  =====================  ===========================================
 
 The default friction makes the predictive controller's steady-state error
@@ -75,6 +77,7 @@ class SimSettings:
     resistance_scale: tuple[float, ...] = ()
     reference_start: str = "zero"   # "zero" or "measured" (derive.sim.start)
     mujoco_model: str = ""           # the file MuJoCo integrates under --plant mujoco (derive.sim.mujoco)
+    mujoco_contacts: bool = False    # MuJoCo's contacts between an MJCF's primitive geoms (derive.sim.mujoco)
 
 
 REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
@@ -117,7 +120,7 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
         return base, problems
     if not isinstance(table, dict):
         return base, [Problem("simulation", "a table", repr(table)[:60])]
-    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model"}
+    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model", "mujoco_contacts"}
     values: dict[str, Any] = {}
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",
@@ -145,6 +148,14 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                     "the arm file), one line of printable text", repr(v)[:60]))
         else:
             values["mujoco_model"] = v
+    if "mujoco_contacts" in table:
+        v = table["mujoco_contacts"]
+        if not isinstance(v, bool):
+            problems.append(Problem("simulation.mujoco_contacts", "true (MuJoCo's contacts between the MJCF's "
+                                    "primitive geoms, with --mujoco-friction file) or false (none, the default)",
+                                    repr(v)[:60]))
+        else:
+            values["mujoco_contacts"] = v
     for key, low in _VECTORS.items():
         if key in table:
             v = table[key]

@@ -14,8 +14,11 @@ read, :mod:`derive.model.chain`), the drive of each joint
 and the simulation settings. The chain comes from exactly one of:
 ``[[link]]`` and ``[[point_mass]]`` tables (a planar chain,
 :mod:`derive.model.planar`), a ``[dh]`` table with ``[[body]]`` tables
-(:mod:`derive.model.dh`), or ``urdf = "robot.urdf"`` with ``base_link``,
-``tip_link`` and ``locked`` under ``[arm]`` (:mod:`derive.model.urdf`).
+(:mod:`derive.model.dh`), ``urdf = "robot.urdf"`` with ``base_link``,
+``tip_link`` and ``locked`` under ``[arm]`` (:mod:`derive.model.urdf`), or
+``mjcf = "robot.xml"`` with ``base_body``, ``tip_body`` and ``locked``
+(:mod:`derive.model.mjcf`: MuJoCo's compiler reads it; its ``armature`` is the
+default of ``motor.rotor_inertia`` as armature / gear_ratio^2).
 
 ``[arm]`` keys: ``name``, ``description``, ``gravity`` (the magnitude g >= 0 in
 m/s^2, default 0), ``gravity_direction`` (the direction of free fall in the
@@ -321,13 +324,16 @@ TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_ma
             "sweep": None, "body_override": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
-            "urdf": None, "base_link": None, "tip_link": None, "locked": None, "repair_inertia": None}
-URDF_ONLY = ("base_link", "tip_link", "locked", "repair_inertia")
+            "urdf": None, "base_link": None, "tip_link": None, "locked": None, "repair_inertia": None,
+            "mjcf": None, "base_body": None, "tip_body": None}
+URDF_ONLY = ("base_link", "tip_link", "repair_inertia")
+MJCF_ONLY = ("base_body", "tip_body")
+FILE_ONLY = ("locked",)   # a URDF's or an MJCF's
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None,
                    "observer_rate": None, "observer_structure": None, "momentum_gain": None}
 KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
-              "or urdf = \"robot.urdf\" under [arm]")
+              "or urdf = \"robot.urdf\" or mjcf = \"robot.xml\" under [arm]")
 W_EXPECTED = ("an array of n observer gains w_j > 0 [N m s/rad] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
               "(a full W), or 'auto' (chosen by an SDP for max_joint_speed)")
 RATE = Num("1/s", _ZERO)
@@ -336,12 +342,14 @@ GRAVITY = NONNEGATIVE["m/s^2"]
 
 
 def _kind(r: Reader, top: dict, arm: Any) -> str | None:
-    """Where the kinematics come from: 'planar', 'dh' or 'urdf' (None: a problem was added)."""
+    """Where the kinematics come from: 'planar', 'dh', 'urdf' or 'mjcf' (None: a problem was added)."""
     urdf = isinstance(arm, dict) and "urdf" in arm
-    found = [k for k, present in (("planar", "link" in top), ("dh", "dh" in top), ("urdf", urdf)) if present]
+    mjcf = isinstance(arm, dict) and "mjcf" in arm
+    found = [k for k, present in (("planar", "link" in top), ("dh", "dh" in top), ("urdf", urdf), ("mjcf", mjcf))
+             if present]
     if len(found) != 1:
         r.add("link" if not found else "arm file", KINEMATICS,
-              "nothing (no [[link]], [dh] or urdf)" if not found else f"{' and '.join(found)} together")
+              "nothing (no [[link]], [dh], urdf or mjcf)" if not found else f"{' and '.join(found)} together")
         return None
     kind = found[0]
     for key, owner in (("point_mass", "planar"), ("body", "dh")):
@@ -350,9 +358,11 @@ def _kind(r: Reader, top: dict, arm: Any) -> str | None:
                   f"{len(top[key]) if isinstance(top[key], list) else 1} with a {kind} arm")
     if kind == "dh" and "body" not in top:
         r.add("body", "one [[body]] table per row of dh.table", "nothing (the key is missing)")
-    for key in URDF_ONLY:
-        if isinstance(arm, dict) and key in arm and kind != "urdf":
-            r.add(f"arm.{key}", "no such key without urdf = \"robot.urdf\"", f"{show(arm[key])} with a {kind} arm")
+    for keys, owners, what in ((URDF_ONLY, ("urdf",), 'urdf = "robot.urdf"'), (MJCF_ONLY, ("mjcf",), 'mjcf = "robot.xml"'),
+                               (FILE_ONLY, ("urdf", "mjcf"), 'urdf = "robot.urdf" or mjcf = "robot.xml"')):
+        for key in keys:
+            if isinstance(arm, dict) and key in arm and kind not in owners:
+                r.add(f"arm.{key}", f"no such key without {what}", f"{show(arm[key])} with a {kind} arm")
     return kind
 
 
@@ -410,6 +420,12 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
         found = urdf_chain(r, arm_table, base_dir, g, unit_direction(head.direction or SPATIAL_DOWN))
         spatial = None if found is None else found.chain
         n = None if spatial is None else spatial.n
+    elif kind == "mjcf":
+        from derive.model.mjcf import mjcf_chain   # here: only an MJCF arm needs MuJoCo
+
+        found = mjcf_chain(r, arm_table, base_dir, g, unit_direction(head.direction or SPATIAL_DOWN))
+        spatial = None if found is None else found.chain
+        n = None if spatial is None else spatial.n
     else:
         n = None
     if "body_override" in top:   # identified bodies (derive identify): URDF and DH arms
@@ -420,7 +436,9 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
             spatial = apply_overrides(r, top["body_override"], spatial)
     joints = "[[link]]" if kind == "planar" else ("rows of dh.table" if kind == "dh" else "moving joints")
     motors = read_motors(r, top.get("motor"), n, head.actuation, joint_friction=kind != "planar", joints=joints)
-    if kind == "urdf" and spatial is not None and len(motors) == n:
+    if kind == "mjcf" and found is not None and len(motors) == n:
+        motors = _armature_defaults(top.get("motor"), motors, found.armature)
+    if kind in ("urdf", "mjcf") and spatial is not None and len(motors) == n:
         friction = tuple((m.viscous_friction, f"motor[{i}].viscous_friction") if m.viscous_friction is not None
                          else (v, where) for i, (m, v, where) in enumerate(
                              zip(motors, found.damping, found.damping_fields), 1))
@@ -430,8 +448,8 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
     controller = _controller(r, top.get("controller", _MISSING), n)
     simulation, sim_problems = parse_simulation(top.get("simulation"), n or 1)
     r.problems.extend(sim_problems if n else [])
-    if kind == "urdf" and found is not None and not sim_problems and "coulomb_friction" not in (
-            top.get("simulation") or {}):   # the URDF's <dynamics friction> is the default
+    if kind in ("urdf", "mjcf") and found is not None and not sim_problems and "coulomb_friction" not in (
+            top.get("simulation") or {}):   # the URDF's <dynamics friction>, the MJCF's frictionloss: the default
         simulation = replace(simulation, coulomb_friction=tuple(
             float(f) if f is not None else c for f, c in zip(found.friction, simulation.coulomb_friction)))
     sweep, sweep_problems = parse_sweep(top.get("sweep"), n or 1)
@@ -443,7 +461,7 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
               simulation=simulation, sweep=sweep, gravity_direction=head.direction or (
                   (Fraction(0), Fraction(-1)) if kind == "planar" else SPATIAL_DOWN),
               spatial=spatial, joint_friction=friction,
-              warnings=found.warnings if kind == "urdf" and found is not None else ())
+              warnings=found.warnings if kind in ("urdf", "mjcf") and found is not None else ())
     _moves_inertia(r, arm)
     if r.problems:
         raise SpecError(printable(source), r.problems)
@@ -451,6 +469,15 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
 
 
 SPATIAL_DOWN = (Fraction(0), Fraction(0), Fraction(-1))
+
+
+def _armature_defaults(tables: Any, motors: list, armature: tuple[Fraction, ...]) -> list:
+    """An MJCF arm's motors with the file's ``armature`` A (the rotor inertia reflected to the joint)
+    as the rotor inertia of each motor whose table does not give one: Jm = A / gear_ratio^2."""
+    given = [isinstance(t, dict) and "rotor_inertia" in t for t in tables] if isinstance(tables, list) else \
+        [False] * len(motors)
+    return [m if have or not a else replace(m, rotor_inertia=a / (m.gear_ratio ** 2))
+            for m, a, have in zip(motors, armature, given)]
 
 
 @dataclass(frozen=True)

@@ -82,7 +82,9 @@ class UrdfChain:
     damping of ``<dynamics damping>`` (0 when absent) and that element's field, the
     Coulomb friction of ``<dynamics friction>`` (None when absent; the simulation's
     default), the warnings (ignored elements that may change the dynamics of the
-    chain: printed by every command) and the links whose inertia was repaired."""
+    chain: printed by every command), the links whose inertia was repaired, and per
+    moving joint the reflected rotor inertia the file gives (an MJCF's ``armature``,
+    the default of motor.rotor_inertia; empty for a URDF, which has none) [kg m^2]."""
 
     chain: Chain
     damping: tuple[Fraction, ...]
@@ -90,6 +92,7 @@ class UrdfChain:
     friction: tuple[Fraction | None, ...] = ()
     warnings: tuple[Problem, ...] = ()
     repaired: tuple[str, ...] = ()
+    armature: tuple[Fraction, ...] = ()
 
 
 def _joint_field(name: str, what: str = "") -> str:
@@ -193,41 +196,46 @@ def _tree(r: Reader, robot: Any) -> dict[str, Any] | None:
     return parent
 
 
-def _link_choice(r: Reader, d: dict, key: str, links: list[str]) -> str | None:
+def name_choice(r: Reader, d: dict, key: str, names: list[str], what: str) -> str | None:
+    """``d[key]`` when it is one of ``names`` (``what``: "link of the URDF", "body of the MJCF"), else
+    None after adding a problem of ``arm.<key>`` listing them, with the closest names."""
     name = d.get(key)
-    if not isinstance(name, str) or name not in links:
-        close = get_close_matches(name, links, n=3) if isinstance(name, str) else []
+    if not isinstance(name, str) or name not in names:
+        close = get_close_matches(name, names, n=3) if isinstance(name, str) else []
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
-        listed = ", ".join(map(repr, links[:12])) + (", ..." if len(links) > 12 else "")
+        listed = ", ".join(map(repr, names[:12])) + (", ..." if len(names) > 12 else "")
         given = "nothing (the key is missing)" if name is None else (
-            f"{show(name)}, not a link of the URDF{hint}" if isinstance(name, str) else show(name))
-        r.add(f"arm.{key}", f"the name of a link of the URDF ({listed})", given)
+            f"{show(name)}, not a {what}{hint}" if isinstance(name, str) else show(name))
+        r.add(f"arm.{key}", f"the name of a {what} ({listed})", given)
         return None
     return name
 
 
-def _locked(r: Reader, value: Any, robot: Any) -> dict[str, sp.Expr]:
+def locked_table(r: Reader, value: Any, kinds: dict[str, str], rotates: dict[str, bool], word: str
+                 ) -> dict[str, sp.Expr]:
+    """``[arm] locked``: joint name -> held value, exact (an angle snapped as derive.model.rigid.exact_angle
+    does); ``kinds``: every joint's type, ``rotates``: the movable types (whether each turns), ``word``:
+    "URDF" or "MJCF". Problems (an unknown or fixed joint, a value not a finite number) added to ``r``."""
     if value is None:
         return {}
     if not isinstance(value, dict):
         r.bad("arm.locked", "a table {joint = value} of joints held at a value (rad or m)", value)
         return {}
-    joints = {j.name: j for j in robot.joints}
+    types = list(rotates)
+    expected = f"the name of a {', '.join(types[:-1])} or {types[-1]} joint of the {word}"
     out = {}
     for name, v in value.items():
         f = f"arm.locked.{inline(name) if not isinstance(name, str) else name}"
-        if name not in joints or joints[name].type not in MOVING:
-            moving = [j for j in joints if joints[j].type in MOVING]
-            close = get_close_matches(name, moving, n=2)
-            r.add(f, "the name of a revolute, continuous or prismatic joint of the URDF"
-                  + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
-                  "an unknown joint" if name not in joints else f"a {joints[name].type} joint")
+        if kinds.get(name) not in rotates:
+            close = get_close_matches(name, [n for n, k in kinds.items() if k in rotates], n=2)
+            r.add(f, expected + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""),
+                  "an unknown joint" if name not in kinds else f"a {kinds[name]} joint")
             continue
         x = to_fraction(v)
         if x is None:
             r.bad(f, "a finite number (rad or m)", v)
             continue
-        out[name] = exact_angle(x) if joints[name].type != "prismatic" else rational(x)
+        out[name] = exact_angle(x) if rotates[kinds[name]] else rational(x)
     return out
 
 
@@ -270,8 +278,9 @@ def _urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, directio
     notes += doc.notes
     parent = _tree(r, robot)
     links = [link.name for link in robot.links]
-    base, tip = _link_choice(r, d, "base_link", links), _link_choice(r, d, "tip_link", links)
-    locked = _locked(r, d.get("locked"), robot)
+    base, tip = (name_choice(r, d, key, links, "link of the URDF") for key in ("base_link", "tip_link"))
+    locked = locked_table(r, d.get("locked"), {j.name: j.type for j in robot.joints},
+                          {"revolute": True, "continuous": True, "prismatic": False}, "URDF")
     repair = repair_choice(r, d.get("repair_inertia"), links)
     if parent is None or base is None or tip is None or r.problems:
         return None
@@ -306,8 +315,11 @@ def _urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, directio
     if r.problems:
         return None
     found = _build(r, robot, base, path, on_path, held, notes, gravity, direction)
-    return None if found is None else replace(found, warnings=tuple(warnings),
-                                              repaired=tuple(name for name, _ in repairs))
+    if found is None:
+        return None
+    chain = replace(found.chain, held=tuple((name, float(value)) for name, value in sorted(held.items())),
+                    repaired=tuple((name, fix.entries) for name, fix in repairs))
+    return replace(found, chain=chain, warnings=tuple(warnings), repaired=tuple(name for name, _ in repairs))
 
 
 def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], locked: dict[str, sp.Expr],
@@ -360,7 +372,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
         r.add("arm.tip_link", "a tip link with at least one revolute, continuous or prismatic joint between it "
               "and base_link", "a chain of fixed joints only")
         return None
-    notes += _angle_notes(log)
+    notes += angle_notes(log)
     _dynamics_notes(joints, damping, friction, notes)
     _zero_limit_notes(zero, notes)
     if merged:
@@ -370,7 +382,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     for j in joints:
         if j.type is JointType.CONTINUOUS:
             notes.append(f"joint {j.name!r} is continuous: one angle, its <limit lower/upper> ignored")
-    params, symbolic = _parameters(bodies, members, joints)
+    params, symbolic = body_parameters(bodies, members, joints)
     vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
     chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes))
     return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints),
@@ -428,7 +440,7 @@ def _zero_limit_notes(zero: dict[str, list[str]], notes: list[str]) -> None:
                          f"no {key} limit (the same in every command)")
 
 
-def _angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
+def angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
     """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept."""
     out = []
     for kind, head in (("snapped", f"angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 snapped to it "
@@ -455,13 +467,15 @@ def _value(x: sp.Expr) -> Fraction:
     return Fraction(int(x.p), int(x.q))
 
 
-def _parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint]
-                ) -> tuple[list[Parameter], list[Body]]:
-    """The ten body parameters of each body (in F_i), and the bodies in their symbols."""
+def body_parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint], what: str = "urdf link"
+                    ) -> tuple[list[Parameter], list[Body]]:
+    """The ten body parameters of each body (in F_i), and the bodies in their symbols; ``members``:
+    the names of what each body merges (``what``: "urdf link" or "mjcf body"), for the fields."""
     params: list[Parameter] = []
     out = []
     for i, (body, names, joint) in enumerate(zip(bodies, members, joints), 1):
-        where = (f"urdf link{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))} "
+        plural = what[:-1] + "ies" if what.endswith("y") else what + "s"
+        where = (f"{what if len(names) == 1 else plural} {', '.join(map(repr, names))} "
                  f"(at joint {joint.name!r})" if names else f"nothing (at joint {joint.name!r})")
         entries = [body.mass, *body.first_moment] + [body.inertia[a, b] for a, b in _INERTIA_INDEX]
         units = ["kg"] + ["kg m"] * 3 + ["kg m^2"] * 6

@@ -134,7 +134,7 @@ def _given(text: str) -> str:
 def cut_down(root: Element) -> tuple[Element, list[str], list[Finding]]:
     """The part of ``root`` that derive reads (a new tree; numbers checked, bad ones
     replaced by zeros), a note counting what was dropped, and the findings."""
-    out = Element("robot", {k: v for k, v in root.attrib.items() if k == "name"})
+    out = Element("robot", {"name": root.get("name", "")})   # a robot without a name is read (the name: "")
     dropped: Counter[str] = Counter()
     findings: list[Finding] = []
 

@@ -18,29 +18,42 @@ def fail(src, what: str) -> DeriveError:
 def strip_geometry(mj, src, spec) -> dict[str, int]:
     """Remove mesh, height-field and SDF geoms and every asset that needs a file (meshes, height
     fields, textures, materials, skins), so MuJoCo reads no file but the model's; a body whose
-    inertia MuJoCo would compute from such a geom is an error (give it an <inertial>)."""
-    from_geoms = spec.compiler.inertiafromgeom
-    shaped = (mj.mjtGeom.mjGEOM_MESH, mj.mjtGeom.mjGEOM_HFIELD, mj.mjtGeom.mjGEOM_SDF)
-    geoms = [g for g in spec.geoms if g.type in shaped]
-    for g in geoms:
-        body = g.parent
-        if from_geoms == mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE or (
-                from_geoms == mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO and not body.explicitinertial):
-            raise fail(src, f"expected body {body.name or '(unnamed)'!r} to give its mass and inertia (an "
-                             f"<inertial>), got them computed from its {str(g.type).split('_')[-1].lower()} geom "
-                             f"{g.name or '(unnamed)'!r}, whose file derive does not read")
-    for g in spec.geoms:
-        g.material = ""
-    for g in geoms:
-        spec.delete(g)
-    removed = {"mesh geoms": len(geoms)} if geoms else {}
-    for kind in ("meshes", "hfields", "textures", "materials", "skins"):
-        items = list(getattr(spec, kind))
-        for item in items:
-            spec.delete(item)
-        if items and kind in ("meshes", "hfields"):
-            removed[kind] = len(items)
+    inertia MuJoCo would compute from such a geom is an error (give it an <inertial>)
+    (derive.model.mjcf_xml.strip_file_geometry)."""
+    from derive.model.mjcf_xml import strip_file_geometry
+
+    removed, inferred = strip_file_geometry(mj, spec)
+    if inferred:
+        body, kind, geom = inferred[0]
+        raise fail(src, f"expected body {body!r} to give its mass and inertia (an <inertial>), got them computed "
+                        f"from its {kind} geom {geom!r}, whose file derive does not read")
     return removed
+
+
+def fix_unmoved(mj, spec, base: str | None, chain: set[str], held: dict[str, float]) -> list[str]:
+    """Remove, before MuJoCo first compiles the file, every joint derive never moves whose removal
+    leaves its body where derive has it: the joints outside the subtree below the ``base`` body (of the
+    base itself, above or beside the chain: a mobile base, a free joint) and the joints not in ``chain`` held at their
+    model value (``held``'s value, default 0, equal to the joint's ``ref``). Return what was held, as
+    'name at value'."""
+    fixed = []
+    for sj in list(spec.joints):
+        if sj.name in chain:
+            continue
+        inside = base is None    # the base a strict ancestor of the joint's body: the joint is below the base
+        body = sj.parent.parent if sj.parent is not None and sj.parent.name != "world" else None
+        while body is not None and not inside:
+            inside = body.name == base
+            body = body.parent if body.name != "world" else None
+        moving = sj.type in (mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE)
+        if inside and moving and held.get(sj.name, 0.0) != float(sj.ref):
+            continue   # held elsewhere than the model pose: hold() moves its body after the compile
+        if inside and not moving:
+            continue   # a ball or free joint below the base: hold() fixes it and says so
+        fixed.append(f"{sj.name or '(unnamed)'} at " + (f"{held.get(sj.name, 0.0):g}" if inside else
+                                                         "the model pose (above or beside the chain's base)"))
+        spec.delete(sj)
+    return fixed
 
 
 def strip_file_elements(spec) -> dict[str, int]:

@@ -12,8 +12,11 @@ Steps:
    revolute or continuous joint, a slide for a prismatic one; the joints must follow each
    other down one branch of the body tree. One DeriveError names the first that does not.
 3. **Held joints**: every other joint is removed and its body fixed where derive holds it
-   (the arm file's ``locked`` value, default 0: the body's frame is moved by that joint
-   motion); free and ball joints are fixed at the model pose. Equality constraints,
+   (the arm file's ``locked`` value, a URDF mimic's rule, default 0: the body's frame is moved
+   by that joint motion); free and ball joints are fixed at the model pose. The joints above the
+   chain's base (a mobile base's virtual joints, a free joint) and those held at the model pose
+   are removed before MuJoCo first compiles the file, so a massless virtual link that derive
+   never moves does not stop MuJoCo's compiler. Equality constraints,
    tendons, actuators, sensors and keyframes of the file are removed (derive's chain has
    none; they are counted in the description).
 4. **Bodies**: each body's inertial is set to what step 1 resolved (so geometry no
@@ -29,23 +32,32 @@ Steps:
    friction loss and limits: ``friction="file"`` keeps the file's (URDF ``<dynamics
    damping friction>``), ``"off"`` sets derive's (damping bv, no friction loss, no limits,
    no springs: both plants then have the same parameters); ``[simulation]
-   viscous_friction`` is added to the damping either way. The smooth Coulomb friction of
+   viscous_friction`` is added to the damping either way. The arm's own MJCF
+   (``[arm] mjcf``): its ``armature`` is derive's rotor inertia (gr^2 Jm, whose default it
+   is), not added to it, and its gravity compensation is off (derive's chain has none). The smooth Coulomb friction of
    ``[simulation] coulomb_friction`` is applied by the loop (:mod:`.loop`) on every joint
    whose file gives no friction loss: where it does (``"file"``), MuJoCo's own dry friction
    is that joint's Coulomb friction, not both.
 6. **Options**: RK4 at h = sample_time / substeps (the derived plant's step), gravity
    g * gravity_direction of the arm file turned from derive's base frame into MuJoCo's
-   world, contacts off for a URDF (it has no geometry left) and with ``friction="off"``
-   (on for an MJCF's primitive geoms otherwise), the constraint solver off when nothing
-   needs it,
+   world, contacts off unless ``[simulation] mujoco_contacts = true`` asks for them (then
+   between an MJCF's primitive geoms, with ``friction="file"``; a URDF has no geometry left),
+   the constraint solver off when nothing needs it,
    no automatic reset (a diverging run reports non-finite values like derive's plant).
-   Static bodies are fused when MuJoCo can (fewer bodies, same inertia).
+   Static bodies are fused when MuJoCo can (fewer bodies, same inertia); without contacts
+   the geoms and lights are left out of the run's model (they exert nothing and every
+   inertia is explicit; MuJoCo would still place them at each RK4 stage: 10 % of the
+   Menagerie Panda's step).
+7. The model MuJoCo integrates is written back as MJCF (:attr:`Compiled.xml`, MjSpec.to_xml):
+   ``derive simulate --plant mujoco`` saves it beside its outputs, for MuJoCo's viewer.
+
+A body that a kept joint moves with no mass or inertia (a massless link between two joints:
+derive's plant runs it, as its bodies below give the joint inertia) is refused by MuJoCo's
+compiler; derive says which link and how to fix the file, instead of MuJoCo's message.
 """
 from __future__ import annotations
 
 import math
-import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass
 from difflib import get_close_matches
 
@@ -55,8 +67,9 @@ import sympy as sp
 from derive.errors import DeriveError
 from derive.model.actuators import terms
 from derive.model.chain import Actuation, JointType
+from derive.model.mjcf_xml import MINVAL, collected_warnings, compile_error
 from derive.sim.mujoco import require
-from derive.sim.mujoco.edit import fail, hold, owners, strip_file_elements, strip_geometry
+from derive.sim.mujoco.edit import fail, fix_unmoved, hold, owners, strip_file_elements, strip_geometry
 
 FRICTION = ("file", "off")
 
@@ -85,6 +98,7 @@ class Compiled:
     dadr: np.ndarray
     coulomb: np.ndarray
     description: dict
+    xml: str = ""
 
 
 def drives(d, values: tuple[float, ...]) -> list[Drive]:
@@ -108,8 +122,24 @@ def _compile(mj, src, spec, what: str):
     try:
         return spec.compile()
     except Exception as exc:  # noqa: BLE001 - MuJoCo raises ValueError with its own message
+        element, said = compile_error(str(exc))
+        if MINVAL in said and element.count("'") >= 2:
+            raise fail(src, _massless(spec, element.split("'")[1])) from None
         text = " ".join(str(exc).split())
         raise fail(src, f"MuJoCo could not compile the {what}: {text}") from None
+
+
+def _massless(spec, name: str) -> str:
+    """derive's message for a moving body MuJoCo finds massless (module docstring)."""
+    body = spec.body(name)
+    joints = [j.name for j in body.joints] if body is not None else []
+    moved = f"moved by joint {joints[0]!r}; " if joints else ""
+    return (f"expected mass and inertia on body {name!r} ({moved}MuJoCo refuses a moving body whose own mass and "
+            "inertia, with those welded to it, are below mjMINVAL = 1e-15; derive's plant runs it, as the bodies "
+            f"below give the joint its inertia), got none: give {name!r} an <inertial> in the file with the mass "
+            "and inertia of what it stands for (a motor, a housing; even 0.01 kg and 1e-6 kg m^2 is closer to the "
+            "real arm than none), or hold the joint"
+            + (f" (locked = {{ {joints[0]} = 0.0 }} under [arm])" if joints else "") + " if it does not move")
 
 
 def _names(ref, kinds) -> list[str]:
@@ -147,28 +177,11 @@ def _map_joints(mj, src, spec, ref, chain) -> list:
     return out
 
 
-@contextmanager
-def _warnings(mj):
-    """MuJoCo's warnings while parsing and compiling, collected (its default handler would print
-    them and write MUJOCO_LOG.TXT into the working folder; its compiler raises Python warnings),
-    the previous handler restored."""
-    said: list[str] = []
-    previous = mj.get_mju_user_warning()
-    mj.set_mju_user_warning(said.append)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            yield said
-        said.extend(str(w.message) for w in caught)
-    finally:
-        mj.set_mju_user_warning(previous)
-
-
 def _reference(mj, src, chain):
     """The file parsed (an MjSpec) without the geometry it needs files for, compiled as written
-    (the reference model), derive's joints mapped onto it (module docstring, steps 1-2), and what
-    was removed."""
-    with _warnings(mj) as said:
+    (the reference model) once the joints derive never moves are fixed (module docstring, step 3),
+    derive's joints mapped onto it (steps 1-2), and what was removed."""
+    with collected_warnings(mj) as said:
         try:
             spec = mj.MjSpec.from_string(src.xml)
         except Exception as exc:  # noqa: BLE001 - MuJoCo's parser raises ValueError with its own message
@@ -176,10 +189,13 @@ def _reference(mj, src, chain):
         if src.kind == "mjcf":
             spec.modelfiledir = src.folder
             spec.compiler.fusestatic = False
-        removed = strip_geometry(mj, src, spec)
+        removed = {**strip_geometry(mj, src, spec), **strip_file_elements(spec)}   # nothing names a fixed joint
+        names = {j.name for j in chain.joints}
+        fixed = fix_unmoved(mj, spec, src.base, names, dict(src.locked)) \
+            if all(spec.joint(name) is not None for name in names) else []   # else: _map_joints says which
         ref = _compile(mj, src, spec, "file as written")
     removed.update({f"MuJoCo warned: {text}": 0 for text in said})
-    return spec, ref, _map_joints(mj, src, spec, ref, chain), removed
+    return spec, ref, _map_joints(mj, src, spec, ref, chain), removed, fixed
 
 
 def check(src, chain) -> None:
@@ -197,7 +213,7 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
     if friction not in FRICTION:
         raise DeriveError(f"--mujoco-friction: expected one of {', '.join(FRICTION)}, got {friction!r}")
     chain = d.dynamics.chain
-    spec, ref, mapped, stripped = _reference(mj, src, chain)
+    spec, ref, mapped, stripped, fixed = _reference(mj, src, chain)
     ids = [j.id for j in mapped]
     joint_bodies = [int(ref.jnt_bodyid[j]) for j in ids]
     base = ref.body(src.base).id if src.base and src.base in [ref.body(b).name for b in range(ref.nbody)] \
@@ -213,8 +229,8 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
                          bool(np.any(ref.jnt_stiffness[j] != 0)) if np.ndim(ref.jnt_stiffness) > 1
                          else bool(ref.jnt_stiffness[j] != 0))
                   for j, name in zip(ids, (x.name for x in mapped))}
-    removed = {**stripped, **strip_file_elements(spec)}
-    held = hold(mj, src, spec, ref, set(ids), dict(src.locked))
+    removed = dict(stripped)
+    held = fixed + hold(mj, src, spec, ref, set(ids), dict(src.locked))
     owner = owners(ref, joint_bodies)
     n = d.n
     planar = d.arm.spatial is None
@@ -235,6 +251,12 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
             scaled[sb.name or f"body {b}"] = factor
     drive = drives(d, values)
     extras = []
+    own_mjcf = src.kind == "mjcf" and getattr(src, "own", False)
+    if own_mjcf and any(sb.gravcomp for sb in spec.bodies[1:]):
+        removed["bodies' gravity compensation (gravcomp; derive's chain has none)"] = sum(
+            1 for sb in spec.bodies[1:] if sb.gravcomp)
+        for sb in spec.bodies[1:]:
+            sb.gravcomp = 0.0
     coulomb = np.array(s.coulomb_friction, dtype=float)
     for i, (sj, dr) in enumerate(zip(mapped, drive)):
         damping, frictionloss, armature, limited, spring = file_joint[sj.name]
@@ -249,9 +271,14 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
             extras += [f"{sj.name}: a spring (stiffness)"] if spring else []
             if damping != dr.damping:
                 extras.append(f"{sj.name}: damping {damping:g} N m s/rad from the file, derive's bv = {dr.damping:g}")
-            extras += [f"{sj.name}: armature {armature:g} kg m^2 from the file"] if armature else []
+            extras += [f"{sj.name}: armature {armature:g} kg m^2 from the file"] if armature and not own_mjcf else []
         sj.damping = [damping + s.viscous_friction[i], *([0.0] * (len(sj.damping) - 1))]  # no polynomial terms
         sj.frictionloss = frictionloss
+        if own_mjcf:   # the file's armature is derive's rotor inertia (its default), not added to it
+            if friction == "file" and armature != dr.armature:
+                extras.append(f"{sj.name}: armature {dr.armature:g} kg m^2 (derive's rotor inertia), the file's "
+                              f"{armature:g} replaced")
+            armature = 0.0
         sj.armature = armature + dr.armature
         sj.actfrclimited = mj.mjtLimited.mjLIMITED_FALSE
         a = spec.add_actuator(name=f"derive_u{i + 1}", target=sj.name, trntype=mj.mjtTrn.mjTRN_JOINT)
@@ -264,7 +291,7 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
     opt.timestep = s.sample_time / s.substeps
     opt.integrator = mj.mjtIntegrator.mjINT_RK4
     opt.gravity = to_world @ g_base
-    contacts = src.kind == "mjcf" and friction == "file" and len(spec.geoms) > 0
+    contacts = src.kind == "mjcf" and friction == "file" and s.mujoco_contacts and len(spec.geoms) > 0
     flags = mj.mjtDisableBit.mjDSBL_AUTORESET
     if not contacts:
         flags |= mj.mjtDisableBit.mjDSBL_CONTACT
@@ -277,19 +304,44 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
     spec.compiler.inertiafromgeom = mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     fused = spec.copy()
     fused.compiler.fusestatic = True
-    with _warnings(mj) as said:
+    with collected_warnings(mj) as said:
         try:
             model = fused.compile()
+            used = fused
         except Exception:  # noqa: BLE001 - MuJoCo cannot fuse some degenerate inertias: keep the bodies apart
             spec.compiler.fusestatic = False
-            model = _compile(mj, src, spec, "model with derive's edits")
-    removed.update({f"MuJoCo warned: {text}": 0 for text in said})
+            model, used = _compile(mj, src, spec, "model with derive's edits"), spec
+        xml = written_xml(used, src, coulomb, contacts)
+        if not contacts and (len(used.geoms) or len(used.lights)):   # inert without contacts: not computed
+            for item in [*used.geoms, *used.lights]:
+                used.delete(item)
+            model = _compile(mj, src, used, "model with derive's edits")
+    removed.update({f"MuJoCo warned: {text}": 0 for text in dict.fromkeys(said)})
     if model.nv != n:
         raise fail(src, f"expected {n} degrees of freedom once the other joints are held, got {model.nv}")
     qadr = np.array([model.joint(j.name).qposadr[0] for j in mapped], dtype=np.int32)
     dadr = np.array([model.joint(j.name).dofadr[0] for j in mapped], dtype=np.int32)
     return Compiled(model, qadr, dadr, coulomb, _describe(mj, src, d, s, friction, mapped, drive, held, removed,
-                                                          scaled, extras, payload, opt.gravity, coulomb))
+                                                          scaled, extras, payload, opt.gravity, coulomb), xml)
+
+
+def written_xml(spec, src, coulomb, contacts: bool) -> str:
+    """The model MuJoCo integrates as MJCF text (module docstring, step 7), with a comment saying what
+    it is and what derive adds at run time ("" when MuJoCo cannot write it); without contacts its geoms
+    and lights are kept for the viewer (the run leaves them out: they exert nothing, the inertias are
+    explicit)."""
+    try:
+        text = spec.to_xml()
+    except Exception:  # noqa: BLE001 - MuJoCo's writer refuses some models; the run does not need the text
+        return ""
+    shown = src.shown.replace("--", "- -")   # "--" may not stand inside an XML comment
+    head = (f"<!-- generated by derive simulate (the MuJoCo plant) from {shown}; do not edit. The model MuJoCo "
+            "integrated: derive's held joints fixed, its drives as actuators (ctrl = u + d)"
+            + ("; derive's smooth Coulomb friction tau_c tanh(theta'/0.01) is added at run time by derive's loop "
+               "(mjcb_passive), not in this file" if any(coulomb) else "")
+            + ("; contacts off: its geoms are drawn only (the run leaves them out)" if not contacts and
+               len(spec.geoms) else "") + " -->\n")
+    return head + text
 
 
 def _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, extras, payload, gravity,

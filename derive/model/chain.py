@@ -167,7 +167,8 @@ class Chain:
     is not a chain joint, with the value it is held at [rad or m] (locked, a
     mimic's rule, else 0); ``repaired``, the links whose inertia derive repaired,
     with the tensor used (ixx, ixy, ixz, iyy, iyz, izz about the centre of mass,
-    in the inertial frame) [kg m^2].
+    in the inertial frame) [kg m^2]. ``tip``: the tip link's frame expressed in F_n (where a
+    payload's centre of mass is given, derive.model.payload), None when it is F_n itself.
     """
 
     joints: tuple[Joint, ...]
@@ -178,6 +179,7 @@ class Chain:
     actuators: tuple[Actuator, ...] = ()
     held: tuple[tuple[str, float], ...] = ()
     repaired: tuple[tuple[str, tuple[Fraction, ...]], ...] = ()
+    tip: Transform | None = None   # the tip link's frame in F_n (a URDF's fixed joints below the last moving one); None: F_n
 
     @property
     def n(self) -> int:

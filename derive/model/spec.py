@@ -56,6 +56,7 @@ from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, TEXT_RULE, Num, Rea
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
 from derive.model.override import apply_overrides
+from derive.model.payload import PayloadRange, parse_payload
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.singular import unmoved_joint
@@ -125,6 +126,7 @@ class Arm:
     spatial: Chain | None = None          # the chain of a DH or URDF arm (planar arms: None)
     joint_friction: tuple[tuple[Fraction, str], ...] = ()   # DH/URDF: (bv, its field) per joint
     warnings: tuple[Problem, ...] = field(default=(), compare=False)   # URDF: ignored elements on the chain
+    payload: PayloadRange | None = field(default=None, compare=False)   # the [payload] range (derive.model.payload)
 
     @property
     def n(self) -> int:
@@ -321,7 +323,7 @@ def load_arm(path: str | Path | None = None) -> Arm:
 
 TOP_KEYS = {"arm": "a table [arm] with at least a name", "link": None, "point_mass": None, "dh": None,
             "body": None, "motor": None, "controller": "a table [controller] with T1, T2 and w", "simulation": None,
-            "sweep": None, "body_override": None}
+            "sweep": None, "body_override": None, "payload": None}
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None, "repair_inertia": None,
@@ -454,13 +456,14 @@ def arm_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = Non
             float(f) if f is not None else c for f, c in zip(found.friction, simulation.coulomb_friction)))
     sweep, sweep_problems = parse_sweep(top.get("sweep"), n or 1)
     r.problems.extend(sweep_problems if n else [])
+    payload = parse_payload(r, top.get("payload"))
     if r.problems:
         raise SpecError(printable(source), r.problems)
     arm = Arm(name=head.name, description=head.description, gravity=head.gravity, links=tuple(links),
               point_masses=tuple(point_masses), motors=tuple(motors), controller=controller, source=source,
               simulation=simulation, sweep=sweep, gravity_direction=head.direction or (
                   (Fraction(0), Fraction(-1)) if kind == "planar" else SPATIAL_DOWN),
-              spatial=spatial, joint_friction=friction,
+              spatial=spatial, joint_friction=friction, payload=payload,
               warnings=found.warnings if kind in ("urdf", "mjcf") and found is not None else ())
     _moves_inertia(r, arm)
     if r.problems:

@@ -337,8 +337,11 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     log: list[tuple[str, str, str]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
     zero: dict[str, list[str]] = {"velocity": [], "effort": []}   # <limit> keys of 0: no limit
     stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
+    tip_name, tip = path[-1].child, None
     while stack:
         name, owner, T = stack.pop()
+        if name == tip_name:
+            tip = T
         if owner >= 0:
             bodies[owner] = merge(bodies[owner], move(_link_body(link_map[name], log), T))
             members[owner].append(name)
@@ -384,7 +387,8 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
             notes.append(f"joint {j.name!r} is continuous: one angle, its <limit lower/upper> ignored")
     params, symbolic = body_parameters(bodies, members, joints)
     vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
-    chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes))
+    chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes),
+                  tip=None if tip is None or tip == Transform.identity() else tip)
     return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints),
                      tuple(friction))
 

@@ -121,6 +121,25 @@ def test_only_the_last_joint_moving_leaves_the_inertia_unexcited_mass_and_com_st
     assert abs(res.mass - MASS) <= 0.02 * MASS and np.linalg.norm(res.com - COM) <= 5e-3, (res.mass, res.com)
 
 
+def test_coulomb_adds_the_moving_joints_friction_as_nuisance_parameters(case, tmp_path):
+    """A plant with Coulomb and extra viscous friction on the wrist: --coulomb finds them (within 4
+    standard deviations) and the payload stays within 2 % and 5 mm; the held joints get none."""
+    arm, t, q, dq, ddq = case["arm"], case["t"], case["q"], case["dq"], case["ddq"]
+    fc, fv = np.array([0.8, 0.6, 0.5]), np.array([0.3, 0.2, 0.2])
+    Ia, bv, _ = pinplant.drives(arm)
+    tau = pinplant.torques(_plant(arm), q, dq, ddq, Ia, bv)
+    tau[:, 3:] += fc * np.sign(dq[:, 3:]) + fv * dq[:, 3:]
+    tau += NOISE * np.random.default_rng(4).normal(size=tau.shape)
+    path = tmp_path / "friction.csv"
+    pinplant.write_log(path, t, np.round(q / ENCODER) * ENCODER, tau)
+    fit = identify_payload(arm, read_log(path, 6), coulomb=True)
+    assert fit.friction_names == ("dfv4", "dfv5", "dfv6", "fc4", "fc5", "fc6") and set(fit.refused) == {1, 2, 3}
+    truth = np.concatenate([fv, fc])
+    assert np.all(np.abs(fit.friction - truth) <= 4 * fit.friction_std), (fit.friction, fit.friction_std)
+    res = payload_result(fit, arm)
+    assert abs(res.mass - MASS) <= 0.02 * MASS and np.linalg.norm(res.com - COM) <= 5e-3, (res.mass, res.com)
+
+
 def test_the_files_larger_range_mass_and_radius_are_kept(case, tmp_path, capsys):
     arm_file = tmp_path / "ur5_range.toml"
     text = UR5.read_text().replace('urdf = "ur5.urdf"', f'urdf = "{(UR5.parent / "ur5.urdf").as_posix()}"')

@@ -42,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("logs", nargs="*", metavar="LOG",
                         help="the logged runs (CSV: t, theta1..n, tau1..n | current1..n | u1..n, optional dtheta1..n "
                              "and valid); a glob in quotes ('runs/*.csv') is expanded")
-    parser.add_argument("--out", type=Path, default=None, help="the identified arm file (default <arm>_identified.toml)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="the identified arm file (default <arm>_identified.toml; --payload: <arm>_payload.toml)")
     parser.add_argument("--report", type=Path, default=None, help="the report folder (default <out>_report)")
     parser.add_argument("--cutoff", type=float, default=CUTOFF,
                         help=f"cut-off of the zero-phase low-pass filter [Hz] (default {CUTOFF:g})")
@@ -58,9 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"standard deviation; default {PRIOR_UNCERTAINTY:g}): what the data does not see stays "
                              "at the file's values")
     parser.add_argument("--payload", nargs="+", metavar="LOG", default=None,
-                        help="identify from these logs only the payload on the last body (mass, centre of mass, inertia about it; "
-                             "the rest is the arm file's) and write it into [payload]; with --coulomb also each "
-                             "moving joint's viscous and Coulomb friction (reported only)")
+                        help="identify from these logs only the payload on the last body (mass, centre of mass, "
+                             "inertia about it; the rest is the arm file's) and write it into [payload]; with "
+                             "--coulomb also each moving joint's viscous and Coulomb friction (reported only)")
     parser.add_argument("--force", action="store_true",
                         help="write the arm file although the solver fell short of its accuracy or the fit explains "
                              "too little of the torque; identify Coulomb friction on one-signed joints")

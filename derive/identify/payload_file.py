@@ -92,9 +92,9 @@ def payload_result(fit: PayloadFit, arm: Arm, where: str = "the logs") -> Payloa
     pi, cov = fit.pi, fit.cov
     m, sm = float(pi[0]), float(np.sqrt(cov[0, 0]))
     if not m > MASS_SIGMAS * sm or m <= 0:
-        raise DataError(f"identify --payload: {where}: the identified mass {m:.4g} ± {sm:.2g} kg: expected a mass more "
-                        f"than {MASS_SIGMAS:g} standard deviations above 0 (no payload the data can tell from none); "
-                        "is the payload mounted, and do the wrist joints move?")
+        raise DataError(f"identify --payload: {where}: the identified mass {m:.4g} ± {sm:.2g} kg: expected a "
+                        f"mass more than {MASS_SIGMAS:g} standard deviations above 0 (no payload the data can tell "
+                        "from none); is the payload mounted, and do the wrist joints move?")
     x = convert(pi, R, p)
     D = np.zeros((10, 10))
     for k in range(10):

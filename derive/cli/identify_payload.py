@@ -9,7 +9,9 @@ table set from the result (mass: the larger of the file's and the identified; co
 com_radius: at least 3 rms standard deviations; inertia only when identified consistently).
 ``--coulomb`` adds per joint that moves both ways a viscous correction and a Coulomb friction
 (nuisance parameters, reported only). A planar arm, a log without the columns, a motion that
-does not excite the payload: one message, exit 2, nothing written.
+does not excite the payload: one message, exit 2, nothing written. ``--prior-uncertainty`` does
+not apply (no prior: the rest of the arm is the file's), nor do derive identify's findings
+(derive.identify.quality).
 """
 from __future__ import annotations
 

@@ -53,7 +53,10 @@ def _num(m: sp.MatrixBase, point: dict) -> sp.Matrix:
 def test_every_project_obligation_is_proved_for_the_default_arm(results):
     project = [r for r in results.values() if r.obligation.kind is Kind.PROJECT]
     assert len(project) == 14
-    assert {r.obligation.id: r.outcome.status for r in project} == {r.obligation.id: Status.PROVED for r in project}
+    # the paper's arm states no [payload] range: payload-range does not apply (tests/test_payload_limit.py)
+    expected = {r.obligation.id: Status.NOT_APPLICABLE if r.obligation.id == "payload-range" else Status.PROVED
+                for r in project}
+    assert {r.obligation.id: r.outcome.status for r in project} == expected
     assert exit_code(tuple(results.values())) == 0
 
 

@@ -192,9 +192,9 @@ class Plant:
         self.u_max = np.array(plant.u_max)
         self._n2 = n * n
 
-    def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
-        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
+    def matrices(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The true plant's J (rows x n x n) and G (rows x n) at (q, dq), each rows x n: the arm's
+        (eq. 12) at the plant's values, with the payload's J_p and G_p when it carries one."""
         n, rows = self.n, q.shape[0]
         vals = self._jg(*q.T, *dq.T, *self._p)
         J = np.empty((rows, n, n))
@@ -203,6 +203,12 @@ class Plant:
         G = np.empty((rows, n))
         for i in range(n):
             G[:, i] = vals[self._n2 + i]
+        return J, G
+
+    def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
+        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
+        J, G = self.matrices(q, dq)
         rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH) - self.viscous * dq
         return np.linalg.solve(J, rhs[..., None])[..., 0]
 

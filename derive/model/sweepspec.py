@@ -25,10 +25,9 @@ by ``derive simulate`` with that ``[simulation]`` section):
 name                   drawn value                                            per
 ====================== ====================================================== ==========
 payload_scale          mass factor of the last link's point masses            arm
-payload_mass           a rigid payload on the tip [kg] (simulation.payload_mass) arm
-payload_com            its centre of mass [m], tip link's frame                 component
-                       (simulation.payload_com); low and high bound every draw
-                       within 2 m (sqrt(3) max(|low|, |high|) <= 2)
+payload_mass           a rigid payload on the tip [kg]                        arm
+payload_com            its centre of mass [m], tip link's frame; low and high component
+                       keep it within 2 m: sqrt(3) max(|low|, |high|) <= 2
 link_mass              factor on each link's mass (and inertia)               link
 coulomb_friction       factor on simulation.coulomb_friction                  joint
 viscous_friction       factor on simulation.viscous_friction                  joint

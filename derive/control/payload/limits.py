@@ -34,7 +34,8 @@ START = 0.5       # kg: the first mass tried when the file states none above it
 CAP_FACTOR = 64   # the search stops at CAP_FACTOR x max(stated mass, START): "at least" that
 SUBSET = 96       # grid points (every k-th) the search runs on
 TOLERANCE = 1.05  # bisection's relative bracket
-HOLDS = 64        # zero-order holds kept for the other forms' searches
+HOLDS = 64        # zero-order holds of subset searches kept for the other forms' searches
+CHUNK = 2048      # rows per batch (memory: a 7-joint arm's whole grid is 16,560 rows)
 
 
 @dataclass(frozen=True)
@@ -87,26 +88,37 @@ class _Rows:
         self._holds: dict = {}   # (dt, mass, rows) -> the loaded plant's zero-order hold, shared by the forms
 
     def form(self, form: str) -> tuple[dict, np.ndarray]:
+        """The nominal linearisation of ``form`` at the operating points (one row per point) and its dG."""
         if form not in self._forms:
             L = self.loop.linearise(form, self.Q, self.DQ)
-            dG = self.loop._plant[2]
-            C = len(self.coms)
-            self._forms[form] = ({k: np.repeat(v, C, axis=0) for k, v in L.items()}, np.repeat(dG, C, axis=0))
+            self._forms[form] = (L, self.loop._plant[2])
         return self._forms[form]
 
     def radii(self, form: str, observer: str, dt: float, mass: float, idx: np.ndarray) -> np.ndarray:
+        """Spectral radii at the rows ``idx`` (point index x centres + centre index), in chunks of CHUNK rows
+        (the whole grid of a 7-joint arm is 16,560 rows): the loaded plant's zero-order hold of a chunk is
+        kept for the other forms' searches when the search asks for few rows."""
         L, dG = self.form(form)
-        Li = {k: v[idx] for k, v in L.items()}
-        if mass == 0.0:
-            return spectral_radius(sampling._transition(self.loop, form, observer, dt, Li), False)
-        key = (dt, mass, idx.tobytes())
-        hit = self._holds.get(key)
-        if hit is None:
-            A, Bu = plant_rows(Li["J"], dG[idx], self.loop.B, self.Jp[idx], self.dGp[idx], mass)
-            hit = self._holds[key] = zoh({"A": A, "Bu": Bu}, dt)
-            while len(self._holds) > HOLDS:
-                self._holds.pop(next(iter(self._holds)))
-        return spectral_radius(sampling._transition(self.loop, form, observer, dt, Li, hit), False)
+        C = len(self.coms)
+        out = np.empty(len(idx))
+        for start in range(0, len(idx), CHUNK):
+            rows = idx[start:start + CHUNK]
+            at = rows // C
+            Li = {k: v[at] for k, v in L.items()}
+            if mass == 0.0:
+                out[start:start + CHUNK] = spectral_radius(sampling._transition(self.loop, form, observer, dt, Li), False)
+                continue
+            key = (dt, mass, rows.tobytes())
+            hit = self._holds.get(key)
+            if hit is None:
+                A, Bu = plant_rows(Li["J"], dG[at], self.loop.B, self.Jp[rows], self.dGp[rows], mass)
+                hit = zoh({"A": A, "Bu": Bu}, dt)
+                if len(idx) <= CHUNK:
+                    self._holds[key] = hit
+                    while len(self._holds) > HOLDS:
+                        self._holds.pop(next(iter(self._holds)))
+            out[start:start + CHUNK] = spectral_radius(sampling._transition(self.loop, form, observer, dt, Li, hit), False)
+        return out
 
 
 _ROWS: dict = {}

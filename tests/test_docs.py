@@ -128,3 +128,14 @@ def test_benchmark_placeholders_name_tables():
         bench.render(table)   # every row as long as the header
     with pytest.raises(KeyError):
         bench.substitute("<!-- bench: no_such_table -->")
+
+
+def test_blocks_read_fences_and_run_markers(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("text\n\n<!-- docs: run -->\n<!-- docs: files a/b.urdf c/d.toml:my_arm.toml -->\n```sh\n"
+                    "derive show\n```\n\n    ```toml\n    [arm]\n    name = \"x\"\n    ```\n", encoding="utf-8")
+    first, second = examples.blocks(page)
+    assert (first.lang, first.code, first.run, first.files, first.line) == \
+        ("sh", "derive show", True, ("a/b.urdf", "c/d.toml:my_arm.toml"), 5)
+    assert (second.lang, second.code, second.run) == ("toml", '[arm]\nname = "x"', False)
+    assert examples.check_block(second) == []

@@ -14,9 +14,10 @@ A fenced block's language decides the check (:func:`check_block`):
   committed generated headers or CMakeLists.txt;
 - ``text``, ``console`` and others: output, not checked.
 
-A block right after the line ``<!-- docs: run -->`` is also *executed* (:func:`run_block`): bash,
-``set -euo pipefail``, in a new temporary folder with ``.venv/bin`` first on PATH; a following
-``<!-- docs: files A B -->`` line copies the repository's files A, B into that folder first.
+A block right after the line ``<!-- docs: run -->`` is also *executed* (:func:`run_block`) in a new
+temporary folder with ``.venv/bin`` first on PATH and ``.venv`` linked into it: a shell block by bash
+(``set -euo pipefail``), a Python block by the venv's python. A ``<!-- docs: files A B:C -->`` line
+beside the marker copies the repository's files A and B there first, B under the name C.
 """
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ FILES = "<!-- docs: files "
 
 @dataclass(frozen=True)
 class Block:
-    """One fenced code block: ``page`` (relative to docs/), its first line's number, language,
+    """One fenced code block: ``page`` (relative to docs/), the line of its opening fence, language,
     code, whether it is to be run and the repository files to copy beside it."""
 
     page: str
@@ -76,7 +77,8 @@ def blocks(path: Path) -> list[Block]:
         while i < len(lines) and lines[i].strip() != fence:
             i += 1
         code = "\n".join(line[len(m["indent"]):] for line in lines[start:i])
-        out.append(Block(str(path.relative_to(DOCS)), start, lang, code, run, files))
+        page = str(path.relative_to(DOCS)) if path.is_relative_to(DOCS) else path.name
+        out.append(Block(page, start, lang, code, run, files))
         i += 1
     return out
 
@@ -292,11 +294,14 @@ def run_block(block: Block, timeout: float = 600) -> str | None:
     its output's tail."""
     with tempfile.TemporaryDirectory(prefix="derive-docs-") as tmp:
         for name in block.files:
-            shutil.copy(ROOT / name, Path(tmp) / Path(name).name)
+            source, _, target = name.partition(":")
+            shutil.copy(ROOT / source, Path(tmp) / (target or Path(source).name))
+        (Path(tmp) / ".venv").symlink_to(ROOT / ".venv")   # the examples' .venv/bin/derive
         env = dict(os.environ, PATH=f"{ROOT / '.venv' / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}",
                    MPLBACKEND="Agg")
-        done = subprocess.run(["bash", "-c", "set -euo pipefail\n" + block.code], cwd=tmp, env=env,
-                              capture_output=True, text=True, timeout=timeout)
+        command = ["python", "-c", block.code] if block.lang == "python" else \
+            ["bash", "-c", "set -euo pipefail\n" + block.code]
+        done = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True, timeout=timeout)
     if done.returncode == 0:
         return None
     tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-15:])

@@ -31,8 +31,9 @@ $(DOCS_STAMP): $(STAMP) pyproject.toml $(CONSTRAINTS)
 # The documentation site (mkdocs.yml, docs/) into build/site, warnings as errors. Its reference pages
 # are generated from derive's parsers, key tables and generated headers, and every example on it is
 # run or parse-checked (docs/hooks.py, docs/gen/).
+# NO_MKDOCS_2_WARNING: mkdocs-material's notice about its successor, printed on every build, left out.
 docs: $(DOCS_STAMP)
-	$(PY) -m mkdocs build --strict --clean --site-dir build/site
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --clean --site-dir build/site
 
 wheelhouse: $(WHEELHOUSE_STAMP)
 

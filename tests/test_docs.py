@@ -139,3 +139,12 @@ def test_blocks_read_fences_and_run_markers(tmp_path):
         ("sh", "derive show", True, ("a/b.urdf", "c/d.toml:my_arm.toml"), 5)
     assert (second.lang, second.code, second.run) == ("toml", '[arm]\nname = "x"', False)
     assert examples.check_block(second) == []
+
+
+def test_metrics_table_is_the_committed_run():
+    assert [bench.short(x) for x in (0.0008850494, 0.03, 0.052, 1.3e-12, 12.5)] == \
+        ["8.9e-4", "3.0e-2", "5.2e-2", "1.3e-12", "1.2e1"]
+    table = bench.metrics_table()
+    for _, label in bench.FORMS:
+        assert f"| {label} | 1 / 2 | " in table
+    assert bench.substitute("<!-- metrics: default experiment -->") == table

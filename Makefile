@@ -10,7 +10,7 @@ CONSTRAINTS := constraints.txt
 WHEELHOUSE := build/wheelhouse
 WHEELHOUSE_STAMP := $(WHEELHOUSE)/.stamp
 
-.PHONY: generate test fuzz bench corpus venv wheelhouse clean system-deps embedded
+.PHONY: generate test fuzz bench corpus venv wheelhouse clean system-deps embedded docs
 
 venv: $(STAMP)
 
@@ -19,6 +19,21 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e '.[test]'
 	touch $(STAMP)
+
+# The docs extra (MkDocs, mkdocs-material, mkdocstrings) on top of the test environment, at the
+# constraints' versions.
+DOCS_STAMP := $(VENV)/.docs-stamp
+
+$(DOCS_STAMP): $(STAMP) pyproject.toml $(CONSTRAINTS)
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e '.[test,docs]'
+	touch $(DOCS_STAMP)
+
+# The documentation site (mkdocs.yml, docs/) into build/site, warnings as errors. Its reference pages
+# are generated from derive's parsers, key tables and generated headers, and every example on it is
+# run or parse-checked (docs/hooks.py, docs/gen/).
+# NO_MKDOCS_2_WARNING: mkdocs-material's notice about its successor, printed on every build, left out.
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --clean --site-dir build/site
 
 wheelhouse: $(WHEELHOUSE_STAMP)
 

@@ -54,10 +54,11 @@ class _Version(argparse.Action):
         parser.exit()
 
 
-def _parser(argv: Sequence[str]) -> argparse.ArgumentParser:
+def _parser(argv: Sequence[str], every: bool = False) -> argparse.ArgumentParser:
     """The command line's parser for ``argv``: every command listed with its help, and the
     arguments of the command ``argv`` names: only its module is imported (the others bring what
-    it may not need: `derive show` loaded the code generator and Jinja2, 0.1 s CPU)."""
+    it may not need: `derive show` loaded the code generator and Jinja2, 0.1 s CPU). ``every``:
+    the arguments of every command (command_parsers)."""
     parser = argparse.ArgumentParser(prog="derive", description=(
         "Derive and generate disturbance-observer-based and nonlinear PID controllers for "
         "robot arms (Chen's paper, eq. 11-38)."))
@@ -66,9 +67,18 @@ def _parser(argv: Sequence[str]) -> argparse.ArgumentParser:
     named = next((a for a in argv if not a.startswith("-")), None)   # the only top-level options are flags
     for name, (module, help_text) in COMMANDS.items():
         command = sub.add_parser(name, help=help_text)
-        if name == named:
+        if every or name == named:
             importlib.import_module(module).add_arguments(command)
     return parser
+
+
+def command_parsers() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+    """The top-level parser and each command's parser (name -> parser, in COMMANDS' order) with
+    every argument added, as ``derive`` builds them: what the documentation's command reference is
+    generated from (docs/gen, tests/test_docs.py). Imports every command's module."""
+    parser = _parser((), every=True)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return parser, {name: sub.choices[name] for name in COMMANDS}
 
 
 def add_arm_argument(parser: argparse.ArgumentParser) -> None:

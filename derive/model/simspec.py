@@ -116,6 +116,9 @@ _VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "dis
             "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None, "link_mass_scale": 0.0,
             "torque_constant_scale": 0.0, "voltage_constant_scale": 0.0, "resistance_scale": 0.0}
 _POSITIVE = {"link_mass_scale", "torque_constant_scale", "resistance_scale"}  # factors that must stay > 0
+# Every key of a [simulation] table (the reader rejects any other; derive.model.keydocs documents each)
+KEYS = frozenset(_SCALARS) | frozenset(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model",
+                                                    "mujoco_contacts", "payload_com"}
 
 
 def _finite(v: Any) -> bool:
@@ -146,8 +149,7 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
         return base, problems
     if not isinstance(table, dict):
         return base, [Problem("simulation", "a table", repr(table)[:60])]
-    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model", "mujoco_contacts",
-                                               "payload_com"}
+    allowed = set(KEYS)
     values: dict[str, Any] = {}
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",

@@ -80,7 +80,7 @@ class Controller:
     """Settings of the predictive controller (eq. 14-19) and observer (eq. 23-25).
 
     The observer gain W [N m s/rad: p = W theta' is a joint torque, eq. 22] is given one of
-    three ways: ``w`` (n gains, W[i][j] = w_j
+    three ways: ``w`` (n gains, ``W[i][j] = w_j``
     for j <= i, eq. 25 generalised), ``W`` (a full n x n matrix) or ``w_auto`` (chosen by
     derive.control.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
     with the structure ``observer_structure``: "chen" or "full"). ``observer_rate``

@@ -75,6 +75,9 @@ PARAMETERS: dict[str, tuple[str, str, bool]] = {
 _POSITIVE = {"payload_scale", "link_mass", "torque_constant", "resistance"}
 _NONNEGATIVE = {"payload_mass", "coulomb_friction", "viscous_friction", "voltage_constant", "velocity_noise", "position_noise"}
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "lognormal": ("median", "sigma")}
+# The keys of a [sweep] table and of each [[sweep.criterion]] (the reader rejects any other)
+KEYS = ("samples", "seed", "controllers", "duration", "vary", "criterion")
+CRITERION_KEYS = ("link", "max", "metric")
 
 
 @dataclass(frozen=True)
@@ -198,7 +201,7 @@ def parse_sweep(table: Any, n: int) -> tuple[SweepSpec | None, list[Problem]]:
     problems: list[Problem] = []
     if not isinstance(table, dict):
         return None, [Problem("sweep", "a table", repr(table)[:60])]
-    allowed = {"samples", "seed", "controllers", "duration", "vary", "criterion"}
+    allowed = set(KEYS)
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"sweep.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})", "<present>"))
     out: dict[str, Any] = {}
@@ -244,8 +247,9 @@ def parse_sweep(table: Any, n: int) -> tuple[SweepSpec | None, list[Problem]]:
         if not isinstance(c, dict):
             problems.append(Problem(field, "a table with metric and max", repr(c)[:60]))
             continue
-        for key in sorted(set(c) - {"metric", "max", "link"}):
-            problems.append(Problem(f"{field}.{key}", "no such key (allowed: link, max, metric)", "<present>"))
+        for key in sorted(set(c) - set(CRITERION_KEYS)):
+            problems.append(Problem(f"{field}.{key}", f"no such key (allowed: {', '.join(CRITERION_KEYS)})",
+                                    "<present>"))
         metric, bound, link = c.get("metric"), c.get("max"), c.get("link")
         good = True
         if metric not in METRICS:

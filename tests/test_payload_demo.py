@@ -110,3 +110,54 @@ def test_starter_experiment_tracks_the_payload(tmp_path: Path, arm: str, fractio
         pytest.importorskip("mujoco")
     mass = rated(arm, fraction)
     check(run(tmp_path, arm, plant, mass, "", None), f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m, 30 s")
+
+
+SWEEP = """
+[sweep]
+samples = 64
+seed = 38
+controllers = ["dobc", "npid", "mom"]
+duration = {duration}
+[sweep.vary]
+payload_mass = {{ distribution = "uniform", low = 0.0, high = {mass} }}
+payload_com = {{ distribution = "uniform", low = -0.0866, high = 0.0866 }}   # each component: the cube inside the 0.15 m ball
+[[sweep.criterion]]
+metric = "rms_error"
+max = 0.01
+[[sweep.criterion]]
+metric = "saturated_time"
+max = 0.0
+"""
+
+
+def sweep(tmp_path: Path, arm: str, duration: float, extra: str) -> tuple[bytes, bytes, dict]:
+    """sweep.json of 64 payloads on MuJoCo with 1 and 2 workers (bytes each) and the parsed first."""
+    path = arm_file(tmp_path, arm, 0.0, extra)
+    path.write_text(path.read_text() + SWEEP.format(duration=duration, mass=ARMS[arm][2]))
+    out = []
+    for workers in (1, 2):
+        folder = tmp_path / f"w{workers}"
+        code = main(["sweep", str(path), "--plant", "mujoco", "--workers", str(workers), "--out", str(folder)])
+        assert code in (0, 1), f"derive sweep --workers {workers}: exit {code}"
+        out.append((folder / "sweep.json").read_bytes())
+    return out[0], out[1], json.loads(out[0])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("arm", ["irb120_like"])
+def test_payload_sweep_is_reproducible(tmp_path: Path, arm: str) -> None:
+    """64 payloads (mass uniform 0..rated, centre of mass in the [payload] ball) on MuJoCo, the compressed
+    experiment: sweep.json byte-identical with 1 and 2 workers."""
+    pytest.importorskip("mujoco")
+    one, two, _ = sweep(tmp_path, arm, 8.0, COMPRESSED)
+    assert one == two, "sweep.json differs between 1 and 2 workers"
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the starter's design holds 0.0274 kg of the 3 kg range (its [payload] comment)")
+def test_payload_sweep_tracks(tmp_path: Path) -> None:
+    """Every one of the 64 payload samples meets rms_error <= 0.01 rad and no saturation, every form."""
+    pytest.importorskip("mujoco")
+    _, _, result = sweep(tmp_path, "irb120_like", 8.0, COMPRESSED)
+    fractions = {f: result["results"][f]["pass_fraction"]["all criteria"] for f in FORMS}
+    assert all(x == 1.0 for x in fractions.values()), f"pass fractions of 64 payloads: {fractions}"

@@ -12,7 +12,7 @@ import platform
 import sys
 import time
 
-SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "mujoco", "observer", "spatial", "identify",
+SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "mujoco", "observer", "spatial", "identify", "payload",
                              "corpus")
 
 

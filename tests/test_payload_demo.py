@@ -1,0 +1,163 @@
+"""Issue 38, "How it is shown": a UR10e-like and an ABB IRB 120-like arm, each with the starter file of
+``derive init <urdf> --tip <flange> --payload <rated>`` (tests/data/urdf/payload/, README there), simulated on
+derive's plant and on MuJoCo with payloads of 0, half and the full rated mass at a centre of mass 0.1 m off
+the flange axis ([0.1, 0, 0] in the tip link's frame, inside the [payload] ball of 0.15 m).
+
+The goal asserted: every observer form (DOBC, NPID, MOM) tracks, its largest per-joint RMS error below
+0.01 rad, no input saturated (the metrics' saturated_time is 0), exit 0.
+
+What the starter files say they hold (their [payload] comments, derive.control.payload.design) is far below
+the rated payloads: UR10 DOBC/NPID 0.367 kg, MOM 2.17 kg of 12.5 kg; IRB 120-like DOBC/NPID 0.0274 kg,
+MOM 0.0325 kg of 3 kg. The loaded runs therefore do not track, as the statement predicts: they are marked
+xfail (strict, so a design that comes to hold the range turns them into failures to be un-marked). Why the
+design falls short: README "Designing for a payload range", the demonstration's table.
+
+The fast variant runs the starter experiment compressed (every joint's pulse starting 1 s after the
+previous one, 8 s in all: every joint moves), about 15-25 s CPU a run, most of it deriving, compiling the
+loop and drawing the figures, not simulating; the loaded cases (known failures) and the 30 s starter
+experiment itself are marked slow.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from derive.cli import main
+
+DATA = Path(__file__).resolve().parent / "data" / "urdf"
+ARMS = {   # name: (starter file, URDF, rated payload [kg])
+    "ur10": (DATA / "payload" / "ur10.toml", DATA / "corpus" / "ur10.urdf", 12.5),
+    "irb120_like": (DATA / "payload" / "irb120_like.toml", DATA / "payload" / "irb120_like.urdf", 3.0),
+}
+FORMS = ("dobc", "npid", "mom")
+OFF_AXIS = [0.1, 0.0, 0.0]    # m, tip link's frame: 0.1 m off the flange axis (the tip frames' z)
+RMS_MAX = 0.01                # rad
+COMPRESSED = 'start = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]\n'
+STATED = {"ur10": 0.367, "irb120_like": 0.0274}   # kg: the smallest limit its [payload] comment states
+
+
+def arm_file(folder: Path, arm: str, mass: float, extra: str = "") -> Path:
+    """The arm's starter file in ``folder`` (its URDF beside it) with ``payload_mass = mass`` at OFF_AXIS and
+    ``extra`` lines in its [simulation] table."""
+    toml, urdf, _ = ARMS[arm]
+    shutil.copy(urdf, folder / urdf.name)
+    text = toml.read_text().replace(f'urdf = "../corpus/{urdf.name}"', f'urdf = "{urdf.name}"')
+    lines = f"payload_mass = {mass!r}\npayload_com = {OFF_AXIS!r}\n{extra}"
+    assert text.count("\n[simulation]\n") == 1
+    path = folder / f"{arm}_{mass:g}.toml"
+    path.write_text(text.replace("\n[simulation]\n", "\n[simulation]\n" + lines))
+    return path
+
+
+def worst(metrics: dict) -> dict[str, tuple[float, float]]:
+    """form -> (largest per-joint RMS error [rad], largest saturated time [s])."""
+    return {f: (max(link["rms_error"] for link in metrics["controllers"][f]["links"]),
+                max(link["saturated_time"] for link in metrics["controllers"][f]["links"])) for f in FORMS}
+
+
+def run(tmp_path: Path, arm: str, plant: str, mass: float, extra: str, duration: float | None) -> dict:
+    path = arm_file(tmp_path, arm, mass, extra)
+    out = tmp_path / "out"
+    args = ["simulate", str(path), "--plant", plant, "--controllers", ",".join(FORMS), "--out", str(out),
+            "--json", str(out / "metrics.json")]
+    code = main(args + (["--duration", str(duration)] if duration else []))
+    assert code == 0, f"derive {' '.join(args)}: exit {code}"
+    return worst(json.loads((out / "metrics.json").read_text()))
+
+
+def check(result: dict, label: str) -> None:
+    bad = {f: r for f, r in result.items() if not (r[0] < RMS_MAX and r[1] == 0.0)}
+    assert not bad, (f"{label}: forms that do not track (largest per-joint RMS error [rad], saturated time [s]): "
+                     f"{bad}; expected RMS < {RMS_MAX} rad and no saturation")
+
+
+def rated(arm: str, fraction: float) -> float:
+    return ARMS[arm][2] * fraction
+
+
+def loaded(arm: str, fraction: float):
+    """A payload case: expected to fail (strict) while the file states less than it."""
+    mass = rated(arm, fraction)
+    marks = ([pytest.mark.slow, pytest.mark.xfail(strict=True, reason=f"the starter's design holds {STATED[arm]} kg "
+                                                  "(its [payload] comment), not the rated range: README 'Designing "
+                                                  "for a payload range'")]
+             if mass > STATED[arm] else [])
+    return pytest.param(arm, fraction, marks=marks, id=f"{arm}-{fraction:g}")
+
+
+CASES = [loaded(arm, fraction) for arm in ARMS for fraction in (0.0, 0.5, 1.0)]
+
+
+@pytest.mark.parametrize("plant", ["derive", "mujoco"])
+@pytest.mark.parametrize("arm, fraction", CASES)
+def test_starter_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str) -> None:
+    """The compressed starter experiment: every form tracks (RMS < 0.01 rad, no saturation, exit 0)."""
+    if plant == "mujoco":
+        pytest.importorskip("mujoco")
+    mass = rated(arm, fraction)
+    check(run(tmp_path, arm, plant, mass, COMPRESSED, 8.0), f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("plant", ["derive", "mujoco"])
+@pytest.mark.parametrize("arm, fraction", CASES)
+def test_starter_experiment_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str) -> None:
+    """The starter experiment as the file states it (30 s): every form tracks."""
+    if plant == "mujoco":
+        pytest.importorskip("mujoco")
+    mass = rated(arm, fraction)
+    check(run(tmp_path, arm, plant, mass, "", None), f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m, 30 s")
+
+
+SWEEP = """
+[sweep]
+samples = 64
+seed = 38
+controllers = ["dobc", "npid", "mom"]
+duration = {duration}
+[sweep.vary]
+payload_mass = {{ distribution = "uniform", low = 0.0, high = {mass} }}
+payload_com = {{ distribution = "uniform", low = -0.0866, high = 0.0866 }}   # each component: the cube inside the 0.15 m ball
+[[sweep.criterion]]
+metric = "rms_error"
+max = 0.01
+[[sweep.criterion]]
+metric = "saturated_time"
+max = 0.0
+"""
+
+
+def sweep(tmp_path: Path, arm: str, duration: float, extra: str) -> tuple[bytes, bytes, dict]:
+    """sweep.json of 64 payloads on MuJoCo with 1 and 2 workers (bytes each) and the parsed first."""
+    path = arm_file(tmp_path, arm, 0.0, extra)
+    path.write_text(path.read_text() + SWEEP.format(duration=duration, mass=ARMS[arm][2]))
+    out = []
+    for workers in (1, 2):
+        folder = tmp_path / f"w{workers}"
+        code = main(["sweep", str(path), "--plant", "mujoco", "--workers", str(workers), "--out", str(folder)])
+        assert code in (0, 1), f"derive sweep --workers {workers}: exit {code}"
+        out.append((folder / "sweep.json").read_bytes())
+    return out[0], out[1], json.loads(out[0])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("arm", ["irb120_like"])
+def test_payload_sweep_is_reproducible(tmp_path: Path, arm: str) -> None:
+    """64 payloads (mass uniform 0..rated, centre of mass in the [payload] ball) on MuJoCo, the compressed
+    experiment: sweep.json byte-identical with 1 and 2 workers."""
+    pytest.importorskip("mujoco")
+    one, two, _ = sweep(tmp_path, arm, 8.0, COMPRESSED)
+    assert one == two, "sweep.json differs between 1 and 2 workers"
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the starter's design holds 0.0274 kg of the 3 kg range (its [payload] comment)")
+def test_payload_sweep_tracks(tmp_path: Path) -> None:
+    """Every one of the 64 payload samples meets rms_error <= 0.01 rad and no saturation, every form."""
+    pytest.importorskip("mujoco")
+    _, _, result = sweep(tmp_path, "irb120_like", 8.0, COMPRESSED)
+    fractions = {f: result["results"][f]["pass_fraction"]["all criteria"] for f in FORMS}
+    assert all(x == 1.0 for x in fractions.values()), f"pass fractions of 64 payloads: {fractions}"

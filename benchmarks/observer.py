@@ -20,7 +20,7 @@ def _random_check(d, W, box: float, count: int = 10_000) -> float:
     automatic differentiation of the derived J (independent of the branch and bound and the split)."""
     import numpy as np
 
-    from derive.control.cert_report import inertia_model
+    from derive.control.certificate.report import inertia_model
 
     model = inertia_model(d)
     idx = [c.index for c in model.deps]
@@ -32,7 +32,7 @@ def _random_check(d, W, box: float, count: int = 10_000) -> float:
 
 
 # arm, box [rad/s], W, the opt-in stage: "" (none), "wider" (ObserverCertificate(wider=True): four angles
-# branched) or "grouped" (ObserverCertificate(grouped=True): the grouped bound, derive.control.grouped_union)
+# branched) or "grouped" (ObserverCertificate(grouped=True): the grouped bound, derive.control.certificate.grouped_union)
 TIGHT = (("planar_3link", 5.0, "chen", ""), ("ur5", 1.0, "full", ""), ("panda", 1.0, "full", ""),
          ("panda", 1.0, "full", "wider"), ("panda", 1.0, "full", "grouped"))
 
@@ -41,14 +41,14 @@ def _tightness() -> tuple[str, list[Goal]]:
     """How tight the certificate is: for the W synthesised on each arm's box, the largest box scale the
     certificate proves against the numeric supremum of (*) itself for the same W (the smallest over
     4,096 sampled angles of the largest scale the box's vertices allow), in the same run; then the
-    adversarial search (derive.control.adversary) at the proved box, which must find no violation."""
+    adversarial search (derive.control.certificate.adversary) at the proved box, which must find no violation."""
     from pathlib import Path
 
     import derive
     from derive.control import certificate as cert
-    from derive.control import cert_report
-    from derive.control.adversary import search
-    from derive.control.synthesis import synthesise
+    from derive.control.certificate import report as cert_report
+    from derive.control.certificate.adversary import search
+    from derive.control.certificate.synthesis import synthesise
     from derive.model.spec import load_arm
 
     urdf = Path(__file__).resolve().parent.parent / "tests" / "data" / "urdf"
@@ -88,9 +88,9 @@ def _tightness() -> tuple[str, list[Goal]]:
 
 def run() -> Section:
     import derive
-    from derive.control import cert_report
+    from derive.control.certificate import report as cert_report
     from derive.control.sampling import limits
-    from derive.control.synthesis import synthesise
+    from derive.control.certificate.synthesis import synthesise
     from derive.model.examples import planar_chain
 
     rows = []
@@ -137,7 +137,7 @@ def run() -> Section:
     goals.extend(tight_goals)
     note = ("The certificate is sound for every angle (branch and bound, Taylor bounds from J's Fourier "
             "coefficients, Weyl; past four angles, branch and bound over three of them and the majorant of "
-            "the other angles' Fourier terms, derive.control.split; the opt-in grouped stage, over four of them "
-            "with the others' terms bounded group by group, derive.control.grouped_union); 'unproven' means its "
+            "the other angles' Fourier terms, derive.control.certificate.split; the opt-in grouped stage, over four of them "
+            "with the others' terms bounded group by group, derive.control.certificate.grouped_union); 'unproven' means its "
             "cell budget ran out (the numeric check still passed).")
     return Section(TITLE, (first, second, third, note), tuple(goals))

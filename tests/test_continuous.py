@@ -1,5 +1,5 @@
 """Continuous joints (issue 19 item 5; case continuous_wrap, ros_controllers#275's kind): the
-tracking error of an output a continuous joint moves is wrapped to (-pi, pi] (derive.control.wrap),
+tracking error of an output a continuous joint moves is wrapped to (-pi, pi] (derive.control.sampling.wrap),
 so a joint reported at theta or at theta - 2 pi gives the same command, in every form: the
 40-digit reference, the generated C and Python, the FMU, the compiled loop and the Python-stepped
 backend, and derive simulate's metrics. The integral of e (NPID) integrates the wrapped error."""
@@ -23,7 +23,7 @@ from derive.codegen.files import generate_files
 from derive.codegen.kernels import ParamsMode
 from derive.codegen.reference import Reference
 from derive.codegen.balls import to_float
-from derive.control.wrap import wrap_numeric, wrapped_outputs
+from derive.control.sampling.wrap import wrap_numeric, wrapped_outputs
 from derive.errors import SpecError
 from derive.model.chain import JointType
 

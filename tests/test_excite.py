@@ -124,7 +124,7 @@ def test_a_zero_urdf_velocity_or_effort_is_no_limit_in_every_command(tmp_path, c
     excite agree: excite takes controller.max_joint_speed (exit 0) where it read a zero limit (exit 2)."""
     import shutil
 
-    from derive.control.grid import speed_box
+    from derive.control.sampling.grid import speed_box
 
     for f in ("effz.urdf", "effz.toml"):
         shutil.copy(ROUND4 / f, tmp_path / f)

@@ -1,5 +1,5 @@
 """Operating-point grids within the joint limits, and J singular there (issue 19 item 5;
-derive.control.grid): the case singular_pose_crash (tests/data/urdf/round3/): J = diag(0.09 cos^2
+derive.control.sampling.grid): the case singular_pose_crash (tests/data/urdf/round3/): J = diag(0.09 cos^2
 theta2, 0.09), singular at theta2 = +-pi/2. With j2 in [-3, 3] rad every command refuses it naming
 the pose (exit 2, nothing written); with j2 in [-1, 1] rad the singular poses lie outside the
 limits and nothing is refused."""
@@ -12,7 +12,7 @@ import pytest
 
 import derive
 from derive.cli import main
-from derive.control.grid import check_definite
+from derive.control.sampling.grid import check_definite
 from derive.errors import SpecError
 
 CASES = Path(__file__).parent / "data" / "urdf" / "round3"

@@ -23,7 +23,7 @@ from derive.codegen.files import generate_files
 from derive.codegen.kernels import ParamsMode, kernel_specs
 from derive.codegen.reference import Reference
 from derive.codegen.balls import to_float
-from derive.control.limit_text import too_slow
+from derive.control.sampling.limit_text import too_slow
 from derive.control.sampling import limits
 from derive.sim.compiled import build
 from derive.sim.simulate import run_compiled, true_plant

@@ -265,7 +265,7 @@ def test_init_starts_the_experiment_where_the_effort_limits_hold_and_scales_its_
     import re
 
     from derive.cli.init_numbers import DISTURBANCE_ACCEL, POSE_LOAD
-    from derive.control.grid import mass_function
+    from derive.control.sampling.grid import mass_function
     from derive.dynamics.program import lambdify
     from derive.model.simspec import default_settings
 

@@ -1,4 +1,4 @@
-"""The sampled loop's linearisation (derive.control.linear_loop): CasADi's exact Jacobians of the
+"""The sampled loop's linearisation (derive.control.sampling.linear_loop): CasADi's exact Jacobians of the
 laws (eq. 15, 27, 34, MOM) and of the plant (eq. 11-12) agree with central differences of the same
 functions, on the paper's arm and on a 6-joint URDF arm, at points of the sample-time grid."""
 from __future__ import annotations

@@ -22,7 +22,7 @@ from derive.codegen.files import generate_files
 from derive.codegen.forms import FORMS
 from derive.codegen.kernels import ParamsMode
 from derive.codegen.reference import Reference
-from derive.control.limit_text import summary_all
+from derive.control.sampling.limit_text import summary_all
 from derive.control.momentum import coriolis_rate
 from derive.control.sampling import limits
 from derive.errors import SpecError

@@ -1,5 +1,5 @@
 """MuJoCo in the loop (issue 21) with what the other branches gave derive's own loop: the wrapped
-error of continuous joints (issue 19 item 5, derive.control.wrap), the reference from the measured
+error of continuous joints (issue 19 item 5, derive.control.sampling.wrap), the reference from the measured
 pose and the implicit observer step whose dobc_init takes dt (issue 20 items 5-7, derive.sim.start),
 the units of u after the actuation (N m in torque mode), and a URDF's <dynamics friction> as the
 default [simulation] coulomb_friction (the corpus branch), counted once on MuJoCo.

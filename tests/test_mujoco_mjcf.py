@@ -94,7 +94,7 @@ def arm_file(folder: Path, extra: str = "", simulation: str = "") -> Path:
 
 def fullM_equals_J(arm, states: int = 5) -> None:
     """MuJoCo's compiled model of the run (friction off: derive's armature) has derive's J (eq. 12)."""
-    from derive.control.grid import mass_function
+    from derive.control.sampling.grid import mass_function
 
     d = derive(arm)
     c = select(arm, "mujoco", "off").model(d, arm.simulation)

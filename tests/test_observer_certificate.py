@@ -20,8 +20,8 @@ from derive.cli import check as check_cli
 from derive.codegen.emit import write_tree
 from derive.codegen.files import generate_files
 from derive.control import certificate as cert
-from derive.control import cert_report
-from derive.control.synthesis import synthesise
+from derive.control.certificate import report as cert_report
+from derive.control.certificate.synthesis import synthesise
 from derive.errors import DerivationError
 from derive.model.examples import planar_chain_dict
 from derive.model.spec import arm_from_dict, resolve_arm_path
@@ -387,7 +387,7 @@ def test_adversarial_search_finds_no_violation_inside_the_proved_box_of_planar_3
     """Eq. 40's obligation (the appendix's V decays): at the largest box the certificate proves for
     planar_3link's W, L-BFGS-B from the worst of 10,000 random states finds N positive definite; at
     1.05 times the numeric supremum it finds a state where N is not (the search can fail)."""
-    from derive.control.adversary import search
+    from derive.control.certificate.adversary import search
 
     d = derive.derive(derive.load_arm("planar_3link"))
     r = cert_report.report(d)

@@ -1,5 +1,5 @@
-"""The grouped bound of the outer angles (derive.control.grouped, issue 23) and its branch and
-bound over the inner angles' torus (derive.control.grouped_cells), for (*) of the appendix (a7).
+"""The grouped bound of the outer angles (derive.control.certificate.grouped, issue 23) and its branch and
+bound over the inner angles' torus (derive.control.certificate.grouped_cells), for (*) of the appendix (a7).
 
 The bound must be sound (J' <= B at every state, checked at random states it never saw, for every
 vertex), its Fourier series in the inner angles must be B itself, and the branch and bound must
@@ -12,9 +12,9 @@ import pytest
 
 import derive
 from derive.control import certificate as cert
-from derive.control import cert_report
-from derive.control.grouped import GroupedModel
-from derive.control.grouped_cells import decide_grouped
+from derive.control.certificate import report as cert_report
+from derive.control.certificate.grouped import GroupedModel
+from derive.control.certificate.grouped_cells import decide_grouped
 
 from .test_spatial_dynamics import vendored_arm
 
@@ -69,7 +69,7 @@ def test_grouped_branch_and_bound_proves_below_and_never_above_the_supremum():
     assert decide_grouped(g, W, 1.05 * exact, budget=2000).verdict is cert.Verdict.UNPROVEN
 
 
-# -- the grouped stage on cells shared by the vertices (derive.control.grouped_union) -----------------
+# -- the grouped stage on cells shared by the vertices (derive.control.certificate.grouped_union) -----------------
 
 def _full_series(shared_model, W):
     """Every vertex's B~ = T B T^T (S = W + W^T = L L^T, T = L^-1) and its gradient from the whole
@@ -95,7 +95,7 @@ def _full_series(shared_model, W):
 
 @pytest.fixture(scope="module")
 def ur5_shared(ur5):
-    from derive.control.grouped_union import Shared
+    from derive.control.certificate.grouped_union import Shared
 
     d, model = ur5
     shape = np.array([2.0, 1.0, 1.5, 1.0, 3.0, 2.5])
@@ -151,7 +151,7 @@ def test_grouped_stage_proves_below_and_never_above_the_supremum():
     """planar_3link (one inner, one outer angle), W = Chen's: decide_shared proves half the grouped
     supremum's estimate; never 1.05 times N's own numeric supremum; the estimate is not above the
     sampled one of GroupedModel.supremum by more than sampling (it is locally optimised)."""
-    from derive.control.grouped_union import Shared, decide_shared
+    from derive.control.certificate.grouped_union import Shared, decide_shared
 
     d = derive.derive(derive.load_arm("planar_3link"))
     model = cert_report.inertia_model(d)
@@ -189,8 +189,8 @@ def test_grouped_stage_proves_80_percent_of_the_panda_supremum_and_the_adversary
     """Issue 23: the Panda's synthesised W (full, 1 rad/s box): largest_proved_speed with the grouped
     stage proves at least 80 % of N's own numeric supremum, and the adversarial search (L-BFGS-B from
     the worst of 10,000 random states) finds no state inside that box where lambda_min(N) <= 0."""
-    from derive.control.adversary import search
-    from derive.control.synthesis import synthesise
+    from derive.control.certificate.adversary import search
+    from derive.control.certificate.synthesis import synthesise
 
     from .test_spatial_dynamics import vendored_arm
 
@@ -209,7 +209,7 @@ def test_grouped_stage_reads_a_negative_scale_as_its_box_and_refuses_what_it_can
     for v >= 0): beyond N's own numeric supremum -v proves nothing, below it the same cells as v. A
     non-finite v or W proves nothing, without an exception; a box shape with a joint J depends on at
     rest (0) gets no grouped stage (its vertex weights divide by the shape) and decides without it."""
-    from derive.control.grouped_union import Shared, decide_shared
+    from derive.control.certificate.grouped_union import Shared, decide_shared
 
     d = derive.derive(derive.load_arm("planar_3link"))
     model = cert_report.inertia_model(d)

@@ -1,6 +1,6 @@
 """The observer certificate past four angles (issue 12, items 1-2 at 6-7 joints): branch and bound
 over three inner angles, the other angles bounded by the majorant U of J's Fourier terms
-(derive.control.split), for the certificate of the appendix's V (a7) generalised.
+(derive.control.certificate.split), for the certificate of the appendix's V (a7) generalised.
 
 The split must be sound (N >= N_A - U at every state, checked at random states it never saw),
 must never refute from its own bound, and must prove the W it synthesises for the 7-joint Panda,
@@ -13,8 +13,8 @@ import pytest
 
 import derive
 from derive.control import certificate as cert
-from derive.control import cert_report
-from derive.control.synthesis import synthesise
+from derive.control.certificate import report as cert_report
+from derive.control.certificate.synthesis import synthesise
 
 from .test_spatial_dynamics import casadi_function, vendored_arm
 
@@ -111,7 +111,7 @@ def test_wider_split_proves_the_synthesised_panda_w_beyond_the_three_angle_split
     three-angle split cannot (30 % of the numeric supremum of N itself; the three-angle split's own
     supremum is about 26 %), and the adversarial search (L-BFGS-B from the worst of 10,000 random
     states) finds no state inside that box where lambda_min(N) <= 0."""
-    from derive.control.adversary import search
+    from derive.control.certificate.adversary import search
 
     d, model = panda
     syn = synthesise(model, [1.0] * 7, structure="full")
@@ -128,13 +128,13 @@ def test_wider_split_proves_the_synthesised_panda_w_beyond_the_three_angle_split
 
 @pytest.mark.slow
 def test_grouped_bound_proves_the_panda_where_n_holds_and_never_above_its_supremum(panda):
-    """The grouped bound (derive.control.grouped, inner theta2..theta5 within their limits, outer
+    """The grouped bound (derive.control.certificate.grouped, inner theta2..theta5 within their limits, outer
     theta6, theta7 over every value) for W = 2 J(0)-shaped gain: its branch and bound proves the box
     at a tenth of N's numeric supremum, where the adversarial search finds no violation either, and
     never proves 1.05 times that supremum (a sampled state fails there)."""
-    from derive.control.adversary import search
-    from derive.control.grouped import GroupedModel
-    from derive.control.grouped_cells import decide_grouped
+    from derive.control.certificate.adversary import search
+    from derive.control.certificate.grouped import GroupedModel
+    from derive.control.certificate.grouped_cells import decide_grouped
 
     d, model = panda
     c = cert.ObserverCertificate(model)

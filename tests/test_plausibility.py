@@ -145,7 +145,7 @@ POLAR = ROOT / "tests" / "data" / "urdf" / "round3" / "polar.urdf"
     ('<limit lower="0.3" upper="0.6" effort="50" velocity="1"/>', '<limit lower="0.3" upper="0.6" effort="50" velocity="500"/>',
      "urdf joint 'j2' <limit velocity>", "mm/s written as m/s", "500 m/s")])
 def test_joint_ranges_and_speeds_the_grids_cover_are_in_their_units(tmp_path, old, new, field, rule, given):
-    """The ranges the operating-point grids cover (derive.control.grid): a revolute range in degrees, a
+    """The ranges the operating-point grids cover (derive.control.sampling.grid): a revolute range in degrees, a
     prismatic travel in millimetres, a velocity limit in deg/s or mm/s."""
     text = POLAR.read_text()
     assert old in text

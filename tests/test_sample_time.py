@@ -16,8 +16,8 @@ import sympy as sp
 
 import derive
 from derive.cli import main
-from derive.control.grid import configurations, spans
-from derive.control.limit_text import summary, summary_all
+from derive.control.sampling.grid import configurations, spans
+from derive.control.sampling.limit_text import summary, summary_all
 from derive.control.sampling import _Z_ONLY, MARGIN, _loop, _radii, limits, operating_points, sample_limit
 from derive.errors import DeriveError
 from derive.sim.backends import Backend
@@ -312,7 +312,7 @@ def test_a_stable_loop_too_fast_for_dt_min_has_a_limit_below_it_that_reads_in_ev
     -K2 / 2 = -1.25e20 1/s (stable; derive check proves it Hurwitz), and every sampled form is unstable already
     at DT_MIN = 1e-7 s. Its limit is "below 1e-7 s", never "none (... unstable as dt -> 0 ...)", and the
     sentences embedding it read as sentences."""
-    from derive.control.limit_text import too_slow
+    from derive.control.sampling.limit_text import too_slow
     from derive.control.sampling import DT_MIN, _continuous_rate
 
     path = tmp_path / "f1.toml"
@@ -339,7 +339,7 @@ def test_the_continuous_loop_is_stable_on_an_arm_with_a_sampling_limit(paper):
     """The continuous rate is the dt -> 0 limit of the sampled loop: negative at every point (all forms, MOM
     in the residual's coordinates) where the sampled loop has a positive limit; a loop unstable as dt -> 0
     (limit 0, not below) is said to be so, not given a limit."""
-    from derive.control.limit_text import _beyond
+    from derive.control.sampling.limit_text import _beyond
     from derive.control.sampling import SampleLimit, _continuous_rate
 
     loop, pts = _loop(paper), operating_points(paper)

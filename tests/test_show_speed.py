@@ -18,7 +18,7 @@ from derive.cli import show
 from derive.cli.notation import TextPrinter
 from derive.control import sampling
 from derive.control.mpc import gains, tbar
-from derive.control.radius import spectral_radius
+from derive.control.sampling.radius import spectral_radius
 
 DATA = Path(__file__).resolve().parent / "data"
 REPO = Path(__file__).resolve().parents[1]
@@ -100,7 +100,7 @@ def test_show_of_a_planar_arm_loads_no_urdf_reader_synthesis_numpy_ma_threadpool
     code = ("import contextlib, io, sys\nfrom derive.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             f"    assert main(['show', {str(DATA / 'my3.toml')!r}, '--no-cache']) == 0\n"
-            "print(sorted(m for m in ('derive.model.urdf', 'derive.model.dh', 'derive.control.synthesis', "
+            "print(sorted(m for m in ('derive.model.urdf', 'derive.model.dh', 'derive.control.certificate.synthesis', "
             "'numpy.ma', 'threadpoolctl', 'difflib') if m in sys.modules))")
     assert _run(code) == "[]"
 
@@ -186,9 +186,9 @@ def test_width_counts_an_ascii_text_by_its_length_as_it_counts_every_text():
 
 def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_of_its_own_run():
     """SampledLoop.linearise keeps J^-1 B, -J^-1 dG/d theta', dr per points and d theta''/d theta per
-    theta'' (derive.control.linear_loop): each form's arrays, after the others', are those of a loop that
+    theta'' (derive.control.sampling.linear_loop): each form's arrays, after the others', are those of a loop that
     linearises that form alone; MPC, DOBC and NPID share theta'' on my3 (kept), MOM does not."""
-    from derive.control.linear_loop import SampledLoop
+    from derive.control.sampling.linear_loop import SampledLoop
 
     d = _my3()
     pts = sampling.operating_points(d)
@@ -205,7 +205,7 @@ def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_
 
 
 def test_the_kept_zero_order_holds_drop_the_oldest_beyond_their_budget(monkeypatch):
-    from derive.control import zoh
+    from derive.control.sampling import zoh
 
     L = {"A": np.zeros((10, 4, 4)), "Bu": np.zeros((10, 4, 2))}
     each = 10 * 6 * 6 * 8 + L["A"].nbytes + L["Bu"].nbytes      # an exp of 10 stacked 6 x 6, and the key's bytes

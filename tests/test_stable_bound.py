@@ -1,5 +1,5 @@
 """The proved radius bound that spares the sample-time search most eigenvalue problems
-(derive.control.radius.stable_bound, spectral_radius): where it proves a radius below 1 the
+(derive.control.sampling.radius.stable_bound, spectral_radius): where it proves a radius below 1 the
 radius is below 1 and below the bound; where a radius is 1 or more it proves nothing, and the search
 sees the radius itself; the limits it finds are those of the eigenvalues alone."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 
 import derive
 from derive.control import sampling
-from derive.control.radius import balancing, spectral_radius, stable_bound
+from derive.control.sampling.radius import balancing, spectral_radius, stable_bound
 
 
 def _stack(seed: int, count: int = 4000, k: int = 9) -> np.ndarray:
@@ -52,7 +52,7 @@ def test_the_balancing_is_an_exact_similarity_that_lets_badly_scaled_loops_be_pr
     assert np.array_equal(B / (f[None, :] / f[:, None]), M)
     rho = np.abs(np.linalg.eigvals(M)).max(axis=-1)
     with_scaling = (stable_bound(M) < 1)[rho < 0.95].mean()
-    import derive.control.radius as radius
+    import derive.control.sampling.radius as radius
     plain = radius.balancing
     try:
         radius.balancing = lambda P, sweeps=2: None
@@ -85,7 +85,7 @@ def test_the_search_sees_every_radius_of_1_or_more_and_every_radius_when_ranking
 def test_sample_limits_are_those_of_the_eigenvalues_alone(monkeypatch):
     """my3-like 3-joint chain and the default arm: every limit, raw value and worst point of both
     discretisations equal to the search with every radius from its eigenvalues."""
-    from derive.control import radius
+    from derive.control.sampling import radius
     from derive.model.examples import planar_chain
 
     for arm in (derive.load_arm(), planar_chain(3)):

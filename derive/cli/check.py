@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     code = exit_code(results)
     sys.stdout.write(render_text(d, results, seconds, code, paper=args.paper))
     if d is not None:
-        from derive.control.limit_text import summary_all
+        from derive.control.sampling.limit_text import summary_all
 
         sys.stdout.write(f"Sample time of {d.arm.name}: {summary_all(d)}\n")
         from derive.control.payload.text import summary as payload_summary

@@ -34,7 +34,7 @@ def run(args) -> int:
     from derive.cli import load_cli_arm
     from derive.codegen.files import GENERATE_STAGES
     from derive.control.ranges import check_ranges
-    from derive.control.limit_text import summary, too_slow
+    from derive.control.sampling.limit_text import summary, too_slow
     from derive.progress import progress
 
     arm = load_cli_arm(args)

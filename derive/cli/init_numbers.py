@@ -43,7 +43,7 @@ def choose_gain(draft: str, out: Path, chain):
     read as it will be written at ``out``."""
     import tomllib
 
-    from derive.control.inertia import joint_coordinates
+    from derive.control.certificate.inertia import joint_coordinates
     from derive.control.starter import starter_gain
     from derive.dynamics.dag import matrix_xreplace
     from derive.dynamics.equations import derive_dynamics
@@ -52,7 +52,7 @@ def choose_gain(draft: str, out: Path, chain):
     arm = arm_from_dict(tomllib.loads(draft), str(out), base_dir=out.resolve().parent)
     dyn = derive_dynamics(arm)
     model_J = matrix_xreplace(dyn.J, dict(dyn.values))    # each shared subexpression once
-    from derive.control.inertia import InertiaModel
+    from derive.control.certificate.inertia import InertiaModel
 
     model = InertiaModel(model_J, joint_coordinates(arm, dyn.sym.theta))
     if model.unbounded:
@@ -71,7 +71,7 @@ def rk4_substeps(d, sample_time: float, initial_theta=None, coulomb=None) -> int
 
     import numpy as np
 
-    from derive.control.grid import mass_function
+    from derive.control.sampling.grid import mass_function
     from derive.sim.plant import decay_mode
 
     s = replace(d.arm.simulation, sample_time=sample_time,
@@ -103,7 +103,7 @@ def starter_pose(d) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     all of them scaled by the largest of PULSE_SCALES for which the worst load over the pose and its
     pulses is within POSE_LOAD: the pose whose smallest scaled amplitude-to-cap ratio is the largest
     (then the lightest; the least loaded with the smallest pulses when none holds). A joint without
-    a range (continuous, or a zero-width one: derive.control.inertia.joint_coordinates) starts
+    a range (continuous, or a zero-width one: derive.control.certificate.inertia.joint_coordinates) starts
     anywhere and takes the 90 deg pulse. Baxter's arm at the zero pose needs
     56 N m on its shoulder, whose effort limit is 50 N m: it sagged, and no form could track; the
     Fetch's torso (0 to 0.386 m) started at its lower limit and left its range, and its travel
@@ -112,7 +112,7 @@ def starter_pose(d) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
 
     from derive.dynamics.sx import batched
 
-    from derive.control.inertia import joint_coordinates
+    from derive.control.certificate.inertia import joint_coordinates
 
     n = d.n
     coords = joint_coordinates(d.arm, d.theta)   # a zero-width range (URDF 0, 0) is none, as everywhere
@@ -188,7 +188,7 @@ def starter_loads(d, theta0=None) -> dict[str, tuple[float, ...]]:
     the estimate caught up). A URDF's own <dynamics friction> is kept. Only the keys that change."""
     import numpy as np
 
-    from derive.control.grid import mass_function
+    from derive.control.sampling.grid import mass_function
     from derive.model.simspec import default_settings
 
     n = d.n

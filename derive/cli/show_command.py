@@ -81,7 +81,7 @@ def _text(args, encoding: str) -> str:
     if not args.latex:
         import textwrap
 
-        from derive.control.limit_text import summary_all
+        from derive.control.sampling.limit_text import summary_all
 
         text += "\n" + textwrap.fill(f"Sample time: {summary_all(d)}", 100, subsequent_indent="  ") + "\n"
         from derive.control.payload.text import summary as payload_summary

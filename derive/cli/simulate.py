@@ -396,7 +396,7 @@ def run(args) -> int:
     cache = SimCache.open(arm, {"observer": args.observer, "plants": used, "friction": args.mujoco_friction},
                           enabled=not args.no_cache and args.backend == "compiled")
     if not args.force:   # the sampled loop's limit (derive.control.sampling): refuse before simulating
-        from derive.control.limit_text import too_slow
+        from derive.control.sampling.limit_text import too_slow
         from derive.sim.simulate import VARIANTS as forms
 
         used_forms = tuple(sorted({forms[c][0] for c in names}))

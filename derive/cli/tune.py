@@ -1,5 +1,5 @@
 """``derive tune [ARM] [--speed V1,V2,...] [--rate BETA] [--structure chen|full] [--json FILE]``:
-the smallest observer gain W certified on a speed box at a rate (derive.control.synthesis).
+the smallest observer gain W certified on a speed box at a rate (derive.control.certificate.synthesis).
 
 Prints W, ||W||_2, the certificate's verdict and the ``w = ...`` line to put in the arm file's
 [controller]. The box is ``--speed`` or the arm's max_joint_speed; one of them is needed.
@@ -51,9 +51,9 @@ def gain_unit(arm) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from derive.control.cert_report import inertia_model
+    from derive.control.certificate.report import inertia_model
     from derive.control.pipeline import derive
-    from derive.control.synthesis import synthesise
+    from derive.control.certificate.synthesis import synthesise
     from derive.cli import load_cli_arm
     from derive.codegen.emit import write_file as write_text
 

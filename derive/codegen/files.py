@@ -84,7 +84,7 @@ def generate_files(d: Derivation, arm_bytes: bytes | None = None, real: str = "d
     The manifest's arm hash is of ``arm_bytes`` when given, else the hash
     load_arm took of the very bytes it validated. Warnings about the
     accuracy the real type can give are appended to ``notes``. ``sample_time``: the
-    sentence of derive.control.limit_text.summary, stated in the headers (derive generate passes it).
+    sentence of derive.control.sampling.limit_text.summary, stated in the headers (derive generate passes it).
     ``stage(name)``, when given, is called as each of GENERATE_STAGES begins (a progress bar).
     ``observer``: the observer step (derive.codegen.kernels.OBSERVER_STEPS); the manifest's
     options name it when it is not the default. ``regressor``: also the identification regressor

@@ -42,7 +42,7 @@ _OPS: dict[int, tuple[str, str]] = {
     ca.OP_FABS: ("fabs{f}({0})", "abs({0})"),
     ca.OP_EXP: ("exp{f}({0})", "_exp({0})"),
     ca.OP_LOG: ("log{f}({0})", "_log({0})"),
-    ca.OP_FLOOR: ("floor{f}({0})", "_floor({0})"),   # a continuous joint's error wrap (derive.control.wrap)
+    ca.OP_FLOOR: ("floor{f}({0})", "_floor({0})"),   # a continuous joint's error wrap (derive.control.sampling.wrap)
     ca.OP_POW: ("pow{f}({0}, {1})", "{0} ** {1}"),
     ca.OP_CONSTPOW: ("pow{f}({0}, {1})", "{0} ** {1}"),
     # the simulation plant's pulse train and amplifier (derive.fmu.plant): C's relational

@@ -151,7 +151,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
              sample_time: str | None = None, observer: str = "explicit") -> ArmView:
     """The view of one arm for one real type and parameter mode (``functions``:
     the kernels' CasADi Functions from :func:`kernel_functions`, when at hand; ``sample_time``:
-    the sentence of derive.control.limit_text.summary for the header, when the caller computed it;
+    the sentence of derive.control.sampling.limit_text.summary for the header, when the caller computed it;
     ``observer``: the observer step, derive.codegen.kernels.OBSERVER_STEPS).
 
     Raises SpecError naming the arm-file fields when a derived constant is not a normal
@@ -163,7 +163,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
     numbers = dict(values)
     docs = {str(p.symbol): p for p in arm.parameters}
     syn = d.synthesis
-    if syn is not None:   # w = "auto": the synthesised gain (derive.control.synthesis)
+    if syn is not None:   # w = "auto": the synthesised gain (derive.control.certificate.synthesis)
         chen = syn.structure == "chen"
         docs.update({str(p.symbol): p for p in observer_parameters(
             [syn.W[j][j] for j in range(d.n)] if chen else None, None if chen else syn.W, "controller.w = 'auto'",
@@ -192,7 +192,7 @@ def arm_view(d: Derivation, real: str, mode: ParamsMode, functions: dict | None 
 
 
 def wrap_note(d: Derivation) -> str:
-    """The sentence of the generated headers on the continuous joints' wrapped error (derive.control.wrap)."""
+    """The sentence of the generated headers on the continuous joints' wrapped error (derive.control.sampling.wrap)."""
     joints = d.dynamics.chain.joints
     cont = [f"{j + 1} ({joints[j].name})" for j in range(d.n) if joints[j].type.value == "continuous"]
     outs = ", ".join(str(i + 1) for i in d.wrapped)
@@ -206,7 +206,7 @@ def wrap_note(d: Derivation) -> str:
 def observer_notes(d: Derivation) -> tuple[str, ...]:
     """Lines for the generated headers: W [N m s/rad: p = W theta' is a joint torque, eq. 22], its
     structure and, for w = "auto", the box, rate and certificate it was synthesised for
-    (derive.control.synthesis)."""
+    (derive.control.certificate.synthesis)."""
     rows = "[" + ", ".join("[" + ", ".join(f"{float(x):.6g}" for x in d.W.row(i)) + "]" for i in range(d.n)) + "]"
     lines = [f"Observer gain W = {rows} {gain_units_text(d.arm.prismatic)} ({d.observer.structure} structure, "
              "eq. 23-25; p = W theta' is a joint torque: the rates W J^-1 are in 1/s)."]

@@ -7,7 +7,7 @@
 For n joints W generalises eq. (25) as the lower-triangular W[i][j] = w_j
 (j <= i): for n = 2 it is [[w1, 0], [w1, w2]]; an arm may also give a full
 n x n W (gain symbols W1_1 .. Wn_n), stated or synthesised
-(derive.control.synthesis); p = W theta' and the proof of theorem 2 need no
+(derive.control.certificate.synthesis); p = W theta' and the proof of theorem 2 need no
 structure (derive.control.certificate). J is never inverted
 symbolically beyond n = 2: L is kept as the product W J^-1 and the generated
 code solves J x = G - B u - p - z numerically.

@@ -19,15 +19,15 @@ from derive.control.mpc import Mpc, derive_mpc, gains
 from derive.control.momentum import Momentum, by_recursion, derive_momentum
 from derive.control.npid import Npid, derive_npid
 from derive.control.observer import Observer, derive_observer, speed_bound
-from derive.control.grid import check_definite
+from derive.control.sampling.grid import check_definite
 from derive.control.opaque import OpaqueDynamics
 from derive.control.ranges import check_ranges
-from derive.control.wrap import wrap, wrapped_outputs
+from derive.control.sampling.wrap import wrap, wrapped_outputs
 from derive.model.spec import Arm, momentum_parameters
 from derive.summary import compact_repr
 
 if TYPE_CHECKING:   # imported where w = "auto" needs it: the SDP synthesis and its certificate (~10 ms)
-    from derive.control.synthesis import Synthesis
+    from derive.control.certificate.synthesis import Synthesis
 
 
 @compact_repr
@@ -75,10 +75,10 @@ class Derivation:
     lumped: dict | None
     speed_bound: sp.Expr | None
     warnings: tuple[str, ...]
-    synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.synthesis)
+    synthesis: Synthesis | None = None   # the W chosen for w = "auto" (derive.control.certificate.synthesis)
     momentum: Momentum | None = None     # the generalized-momentum observer (derive.control.momentum), symbols
     u_mom: sp.Matrix | None = None       # eq. 27 with its estimate: u* - B^-1 K (J theta' - m), numeric
-    wrapped: tuple[int, ...] = ()        # outputs whose error is wrapped to (-pi, pi] (derive.control.wrap)
+    wrapped: tuple[int, ...] = ()        # outputs whose error is wrapped to (-pi, pi] (derive.control.sampling.wrap)
     formal: "Derivation | None" = None  # the same over placeholders J, G, g, C (derive.control.opaque)
 
     @property
@@ -117,7 +117,7 @@ class Derivation:
     def tracking_error(self) -> tuple[sp.Matrix, sp.Matrix]:
         """(e, e') in the measurements: e = yd - C theta (eq. 20), e' = yd' - C theta' (n x 1 each);
         the outputs of ``wrapped`` (those a continuous joint moves) have e wrapped to (-pi, pi]
-        (derive.control.wrap), so theta and theta - 2 pi give the same e."""
+        (derive.control.sampling.wrap), so theta and theta - 2 pi give the same e."""
         s = self.dynamics.sym
         e = sp.Matrix(s.yd) - self.C * sp.Matrix(s.theta)
         e = sp.Matrix([wrap(e[i]) if i in self.wrapped else e[i] for i in range(e.rows)])
@@ -134,7 +134,7 @@ def derive(arm: Arm) -> Derivation:
 
     Raises SpecError, naming the arm-file fields, when a derived constant is not a
     normal double (``derive.control.ranges``: e.g. T2 = 1e-170 makes k1 = 3e339), or when J(theta) is
-    singular at a configuration within the joint limits (``derive.control.grid.check_definite``)."""
+    singular at a configuration within the joint limits (``derive.control.sampling.grid.check_definite``)."""
     dyn = derive_dynamics(arm)
     ctl = arm.controller
     # the control stages are algebra over J, G, g, C: built over placeholders (milliseconds),
@@ -145,7 +145,7 @@ def derive(arm: Arm) -> Derivation:
     wrapped = wrapped_outputs(mpc_f.Cout, dyn.chain.joints, arm.source)
     synthesis = None
     if ctl.w_auto:
-        from derive.control.synthesis import synthesise_for
+        from derive.control.certificate.synthesis import synthesise_for
 
         synthesis = synthesise_for(arm, matrix_xreplace(dyn.J, dict(dyn.values)), dyn.sym.theta)
         chen = synthesis.structure == "chen"
@@ -187,7 +187,7 @@ def derive(arm: Arm) -> Derivation:
     # inlining of its formal one (derive.proofs.project.formal_first relies on it)
     object.__setattr__(d, "_formal_of", d.formal)
     check_ranges(d, "double")  # show, check, simulate and the Python module compute in double
-    check_definite(d)          # J invertible within the joint limits (derive.control.grid), before any output
+    check_definite(d)          # J invertible within the joint limits (derive.control.sampling.grid), before any output
     return d
 
 

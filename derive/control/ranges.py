@@ -16,16 +16,13 @@ spoil every matrix that uses it), each naming the fields its entry depends on.
 from __future__ import annotations
 
 from fractions import Fraction
-from typing import TYPE_CHECKING
+from typing import Any   # d: derive.control.pipeline.Derivation (which imports this module)
 
 import numpy as np
 import sympy as sp
 
 from derive.errors import Problem, SpecError
 from derive.model.fields import printable
-
-if TYPE_CHECKING:  # the pipeline imports this module
-    from derive.control.pipeline import Derivation
 
 REALS = ("double", "float")
 
@@ -74,7 +71,7 @@ def shown(x: Fraction | sp.Number) -> str:
     return f"{sign}{float(m):.4g}e{e:+d}" if abs(e) >= 5 else f"{sign}{float(q):.5g}"
 
 
-def parameter_fields(d: "Derivation") -> dict[sp.Symbol, str]:
+def parameter_fields(d: Any) -> dict[sp.Symbol, str]:
     """The arm-file field of each parameter symbol of ``d`` (``link[2].mass``,
     ``controller.T2``, ``urdf link 'forearm' <inertial><mass>``): the arm's Parameter records."""
     return {p.symbol: p.field for p in d.arm.parameters}
@@ -110,7 +107,7 @@ def _expected(real: str) -> str:
             f"(0, or {float(tiny):.3g} to {float(huge):.3g} in magnitude)")
 
 
-def range_problems(d: "Derivation", real: str) -> list[Problem]:
+def range_problems(d: Any, real: str) -> list[Problem]:
     """Every derived constant of ``d`` that is not a normal ``real``, as problems naming fields."""
     problems: list[Problem] = []
     for p in d.arm.parameters:
@@ -182,7 +179,7 @@ def _culprits(entry: sp.Expr, values: dict[sp.Symbol, sp.Rational], real: str) -
     return params if worst is None else worst.free_symbols & set(values)
 
 
-def check_ranges(d: "Derivation", real: str) -> None:
+def check_ranges(d: Any, real: str) -> None:
     """Raise SpecError (naming the arm-file fields) unless every derived constant of
     ``d`` is a normal number of ``real`` ('double' or 'float')."""
     if real not in REALS:

@@ -18,7 +18,7 @@ past four angles) proves on the speed box, times MARGIN, and at least what puts 
 of the smallest and largest rate at FLOOR (rates spread as J does; the largest sets the sample
 time, the smallest how slowly the estimate may follow in the worst pose): the appendix's V
 decays when 2 omega Jbar - J'(theta, theta') > 0 over the box, so the box's numeric supremum for
-W = Jbar (the certificate's own sound form, derive.control.split for 6-7 joints) gives omega; the
+W = Jbar (the certificate's own sound form, derive.control.certificate.split for 6-7 joints) gives omega; the
 sound decision is then run on the rounded W within FIRST_BUDGET cells, and omega is raised by RAISE
 (BUDGET cells each) until it proves (at most TRIES times; the decision is deterministic, so ``derive check`` with its larger
 budget proves the same W).

@@ -1,7 +1,7 @@
 """SymPy -> CasADi SX of single expressions, by value numbering over the expression DAG.
 
 The kernels (derive.codegen.casadi_bridge) and the observer certificate's numeric J and
-its derivatives (derive.control.inertia) build their CasADi graphs through :func:`to_sx`:
+its derivatives (derive.control.certificate.inertia) build their CasADi graphs through :func:`to_sx`:
 each distinct subexpression is converted once. Exact rationals become the nearest double
 exactly once.
 """

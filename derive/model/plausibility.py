@@ -40,7 +40,7 @@ gr^2 Jm, which ``derive identify`` writes there, 0.1-2 kg m^2 for a harmonic-dri
 Schunk LWA 4P. Its bound is that of a 0.1 kg m^2 rotor behind a 100:1 gear.
 
 The last four are the ranges the operating-point grids cover (the observer certificate's box, the
-sample-time analysis, derive.control.grid): a range in the wrong unit would put the grids, and
+sample-time analysis, derive.control.sampling.grid): a range in the wrong unit would put the grids, and
 the guarantees stated over them, far from the arm's real motion.
 """
 from __future__ import annotations

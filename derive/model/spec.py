@@ -82,7 +82,7 @@ class Controller:
     The observer gain W [N m s/rad: p = W theta' is a joint torque, eq. 22] is given one of
     three ways: ``w`` (n gains, ``W[i][j] = w_j``
     for j <= i, eq. 25 generalised), ``W`` (a full n x n matrix) or ``w_auto`` (chosen by
-    derive.control.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
+    derive.control.certificate.synthesis for the box ``max_joint_speed`` and the rate ``observer_rate``,
     with the structure ``observer_structure``: "chen" or "full"). ``observer_rate``
     [1/s]: the exponential rate the observer certificate must give (0: any).
     ``momentum_gain``: the diagonal gain K [1/s] of the generalized-momentum observer

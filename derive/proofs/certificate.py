@@ -27,7 +27,7 @@ import sympy as sp
 
 from derive.control import certificate as cert
 
-from derive.control import cert_report
+from derive.control.certificate import report as cert_report
 from derive.dynamics.planar import a6_form
 from derive.proofs.core import Counterexample, Kind, Obligation, Outcome, Status, combine, not_applicable, positive
 

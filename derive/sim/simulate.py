@@ -31,7 +31,7 @@ import numpy as np
 from derive.errors import DeriveError
 from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
-from derive.control.wrap import wrap_numeric
+from derive.control.sampling.wrap import wrap_numeric
 from derive.dynamics.program import lambdify
 from derive.sim.backends import ControllerError
 from derive.model.simspec import SimSettings, pulse_amplitudes
@@ -84,7 +84,7 @@ class Trace:
     @property
     def error(self) -> np.ndarray:
         """e = yd - C theta per sample (k x n): a continuous joint's output wrapped to (-pi, pi]
-        (derive.control.wrap), as the generated controllers compute it."""
+        (derive.control.sampling.wrap), as the generated controllers compute it."""
         return self.e if self.e is not None else self.yd - self.theta
 
 
@@ -162,7 +162,7 @@ def diagnose(d: Derivation, s: SimSettings, name: str, step: int, code: int, inp
 
 def tracking_error(d: Derivation, yd: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """e = yd - C theta (eq. 20) per sample (k x n), the outputs ``d.wrapped`` (moved by a continuous
-    joint) wrapped to (-pi, pi] as the generated controllers wrap them (derive.control.wrap)."""
+    joint) wrapped to (-pi, pi] as the generated controllers wrap them (derive.control.sampling.wrap)."""
     e = yd - theta @ np.array(d.C.tolist(), dtype=float).T
     for i in d.wrapped:
         e[:, i] = wrap_numeric(e[:, i])

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from derive.control.pipeline import Derivation
-from derive.control.wrap import wrap_numeric
+from derive.control.sampling.wrap import wrap_numeric
 from derive.dynamics.program import lambdify
 from derive.model.simspec import SimSettings
 
@@ -50,7 +50,7 @@ def initial_estimate(d: Derivation, theta, dtheta, e, de, dt: float | None = Non
 
 def start_estimate(d: Derivation, s: SimSettings, observer: str = "explicit") -> np.ndarray:
     """dhat(0) at the experiment's start: the arm at rest at initial_theta, y_d(0) as reference_start
-    says (y_d'(0) = 0), e(0) wrapped for the outputs of continuous joints (derive.control.wrap)."""
+    says (y_d'(0) = 0), e(0) wrapped for the outputs of continuous joints (derive.control.sampling.wrap)."""
     theta0 = np.array(s.initial_theta, dtype=float)
     e = reference_offset(d, s) - np.array(d.C.tolist(), dtype=float) @ theta0
     for i in d.wrapped:

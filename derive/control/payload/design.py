@@ -101,7 +101,7 @@ def describe(pd: PayloadDesign, rng: PayloadRange) -> list[str]:
     verdict = (f"holds the whole [payload] range ({rng.mass:g} kg)" if pd.holds else
                f"does NOT hold the whole [payload] range ({rng.mass:g} kg): {pd.held():.3g} kg at most at this sample "
                "time; lower the payload, or shorten the sample time below 0.1 ms knowingly")
-    return [f"# Designed for [payload] (derive.control.payload.design): W and the momentum gains are the nominal",
+    return ["# Designed for [payload] (derive.control.payload.design): W and the momentum gains are the nominal",
             f"# starter's times {pd.factor:.3g}, the sample time refitted; at sample_time the linearised sampled loop",
             f"# {verdict} (largest payload, worst centre of mass in the ball: {parts}; 0.9 of the largest stable).",
             "# The controller's model carries no payload: the observer absorbs it (derive show and check state it)."]

@@ -2,7 +2,7 @@
 
 For a form (derive.control.sampling.FORMS) and observer discretisation, at the arm file's sample
 time dt, the largest payload mass m such that the sampled closed loop, linearised as
-derive.control.sampling does (zero-order hold, every operating point of derive.control.grid) but
+derive.control.sampling does (zero-order hold, every operating point of derive.control.sampling.grid) but
 with the plant carrying the payload (derive.control.payload.loop), has every eigenvalue inside the
 unit circle at every operating point and for every centre of mass the search tries: the ``[payload]``
 ball's centre, its six axis points and its eight diagonal points (com_radius from the centre; the
@@ -25,8 +25,8 @@ import numpy as np
 
 from derive.control import sampling
 from derive.control.payload.loop import PayloadPlant, plant_rows
-from derive.control.zoh import zoh
-from derive.control.radius import spectral_radius
+from derive.control.sampling.zoh import zoh
+from derive.control.sampling.radius import spectral_radius
 from derive.model.payload import PayloadRange, body_values
 
 MARGIN = 0.9

@@ -2,7 +2,7 @@
 
 The controller is the nominal one (its laws, its observer's J and G); the plant is the arm with a
 rigid payload on its last body, J_true = J + J_p, G_true = G + G_p (derive.dynamics.payload).
-At an operating point of derive.control.grid the loop is in equilibrium with the payload once the
+At an operating point of derive.control.sampling.grid the loop is in equilibrium with the payload once the
 observer holds the disturbance the payload makes (the static part of G_p - (J_p theta'' = 0)): the
 observer's state and the integral sit elsewhere, but every law is affine in its state (u = u* -
 B^-1 (z + W theta'), u* + B^-1 W xi, u* - B^-1 K (J theta' - m)), so the laws' Jacobians, the
@@ -62,7 +62,7 @@ class PayloadPlant:
 
 
 def loaded(L: dict, dG: np.ndarray, B: np.ndarray, Jp: np.ndarray, dGp: np.ndarray, mass: float) -> dict:
-    """The linearisation ``L`` (derive.control.linear_loop.SampledLoop.linearise, rows already
+    """The linearisation ``L`` (derive.control.sampling.linear_loop.SampledLoop.linearise, rows already
     repeated to match ``Jp``) with the plant carrying ``mass`` times the unit payload (Jp, dGp): A's
     acceleration rows and Bu from J_true = J + mass Jp, dG_true = dG + mass dGp at theta'' = 0 (module
     docstring); the laws' and observers' entries unchanged. ``dG``: the nominal dG/d(theta, theta') at

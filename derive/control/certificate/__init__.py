@@ -30,89 +30,20 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, replace
-from enum import Enum
+from dataclasses import replace
 
 import numpy as np
 
-from derive.control.inertia import Coordinate, InertiaModel, joint_coordinates
-from derive.control.split import MAX_INNER, SplitModel, split_model
+from derive.control.certificate.decision import (FLOAT_MARGIN, Decision, Verdict, _positive_definite,  # noqa: F401
+                                                  _spectral_norm, halve_cells)
+from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
+from derive.control.certificate.split import MAX_INNER, SplitModel, split_model
 
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
 
-FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding (~ n eps ||N||)
 DEFAULT_BUDGET = 20_000   # cells per decision
 MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
-
-
-class Verdict(str, Enum):
-    PROVED = "proved"
-    REFUTED = "refuted"
-    UNPROVEN = "unproven"
-
-
-@dataclass(frozen=True)
-class Decision:
-    """The outcome of (*) for one W, box and rate.
-
-    verdict: proved / refuted / unproven; cells: cells examined; margin: a lower
-    bound of the smallest lambda_min(N) - ||R||_2 over the proved cells (proved; a cell
-    whose vertices passed the Cholesky test at half its centre's slack counts that half,
-    the rest their vertices' own eigenvalues, so the smallest is exact where it matters); point: a
-    (theta, theta') where N is not positive definite (refuted), or the worst
-    centre found; low: the smallest lambda_min(N) seen at a centre (N itself when
-    refuted; else, like margin, in J's diagonal scale D^-1 N D^-1 the cells are decided in).
-    """
-
-    verdict: Verdict
-    cells: int
-    margin: float | None
-    point: tuple[tuple[float, ...], tuple[float, ...]] | None
-    low: float
-    seconds: float
-
-
-def halve_cells(centres: np.ndarray, halves: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The two children of each cell (rows of ``centres``, half-widths ``halves``, P x m) split in half
-    along its ``axis`` (P): (2P x m centres, 2P x m half-widths), the left children first."""
-    rows = np.arange(centres.shape[0])
-    hs = halves.copy()
-    hs[rows, axis] /= 2
-    left, right = centres.copy(), centres.copy()
-    left[rows, axis] -= hs[rows, axis]
-    right[rows, axis] += hs[rows, axis]
-    return np.vstack([left, right]), np.vstack([hs, hs])
-
-
-def _spectral_norm(R: np.ndarray) -> np.ndarray:
-    """An upper bound of ||R||_2 of symmetric nonnegative matrices (... x n x n): the Perron root,
-    bounded by Collatz-Wielandt, rho(R) <= max_i (R x)_i / x_i for any positive x, with x a few
-    power iterations from ones (nearly tight; matrix-vector products instead of eigenvalues), rounded up."""
-    x = np.ones(R.shape[:-1])
-    for _ in range(4):
-        x = np.einsum("...ij,...j->...i", R, x)
-        x = x / np.maximum(x.max(axis=-1, keepdims=True), 1e-300)
-    x = x + 1e-9
-    return (np.einsum("...ij,...j->...i", R, x) / x).max(axis=-1) * (1 + 1e-12) + 1e-300
-
-
-def _positive_definite(A: np.ndarray) -> np.ndarray:
-    """Whether each symmetric matrix of ``A`` (... x n x n) is positive definite: Cholesky without
-    pivoting, vectorised over the stack (all pivots positive; NaN fails). In floating point a
-    success proves A + E positive definite with ||E||_2 <= n (n + 1) eps n ||A||_2 (Demmel's bound
-    of Cholesky's backward error, Higham, Accuracy and Stability of Numerical Algorithms, thm 10.5):
-    the caller's shift by FLOAT_MARGIN (1 + ||W + W^T||) covers it, as it covers eigvalsh's."""
-    n = A.shape[-1]
-    L = np.moveaxis(A.reshape(-1, n, n), 0, -1).copy()        # n x n x B: each step one array operation
-    ok = np.ones(L.shape[-1], dtype=bool)
-    for k in range(n):
-        pivot = L[k, k]
-        ok &= pivot > 0
-        if k + 1 < n:
-            col = L[k + 1:, k] / np.where(pivot > 0, pivot, 1.0)
-            L[k + 1:, k + 1:] -= col[:, None, :] * L[k, k + 1:][None, :, :]
-    return ok.reshape(A.shape[:-2])
 
 
 class ObserverCertificate:
@@ -120,7 +51,7 @@ class ObserverCertificate:
 
     def __init__(self, model: InertiaModel, shape=None, inner: int = MAX_INNER, wider: bool = False,
                  grouped: bool = False) -> None:
-        """``shape``: the speed box's shape the split (derive.control.split) is chosen for (ones
+        """``shape``: the speed box's shape the split (derive.control.certificate.split) is chosen for (ones
         when None); the split is used past MAX_ENUMERATED angles when J is a trigonometric
         polynomial, with ``inner`` angles decided by branch and bound. With ``wider`` such a
         certificate also holds ``wider``: the same with one inner angle more (when an outer angle
@@ -128,7 +59,7 @@ class ObserverCertificate:
         instead of three, slower cells but a majorant of fewer terms (the Panda's synthesised W,
         make bench: the box proved grows from 26 % to 34 % of the numeric supremum, and the
         search's CPU time from seconds to about a minute, which is why it is not the default). With
-        ``grouped`` such a certificate also holds the grouped stage (derive.control.grouped_union:
+        ``grouped`` such a certificate also holds the grouped stage (derive.control.certificate.grouped_union:
         the outer angles' terms bounded group by group, four inner angles on cells shared by the
         speed vertices), which :meth:`decide` tries last at rate 0 on the box shape it was made for
         (the Panda's synthesised W: above 80 % of the numeric supremum in under a minute, make bench);
@@ -145,7 +76,7 @@ class ObserverCertificate:
             if wider and m > inner + 1:
                 self.wider = ObserverCertificate(model, shape, inner + 1)
             if grouped and np.all(box[[c.index for c in model.deps]] > 0):   # a joint at rest: no vertex weights
-                from derive.control.grouped_union import GroupedStage   # imported when asked for
+                from derive.control.certificate.grouped_union import GroupedStage   # imported when asked for
                 self.grouped = GroupedStage(model, box)
         self.target = self.split if self.split is not None else model
         self.inner = list(self.split.inner) if self.split is not None else list(range(m))
@@ -164,7 +95,7 @@ class ObserverCertificate:
     def matrices(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, q: np.ndarray,
                  exact: bool = False) -> np.ndarray:
         """N at every box vertex for points q: N x 2^m x n x n. With a split and not ``exact``: the
-        sound lower bound N_A - U(v) of derive.control.split at inner points q (N x m_inner); else
+        sound lower bound N_A - U(v) of derive.control.certificate.split at inner points q (N x m_inner); else
         N itself at points q (N x m)."""
         split = None if exact else self.split
         md = self.model if split is None else split
@@ -175,7 +106,7 @@ class ObserverCertificate:
         return N if split is None else N - split.majorant(speeds, beta, self.scale_for(W, shape))[None]
 
     def scale_for(self, W: np.ndarray, shape) -> str:
-        """The split's majorant for this W (derive.control.split: "J", absolute values in J's scale, or
+        """The split's majorant for this W (derive.control.certificate.split: "J", absolute values in J's scale, or
         "I", in the identity's; both are sound): the one whose largest eigenvalue relative to
         W + W^T on the box is smaller ("I" when W + W^T is not positive definite). A function of W
         and the box only, so every decision on the same W (init's, derive check's) takes the same."""
@@ -386,7 +317,7 @@ class ObserverCertificate:
         """Numeric estimate (an upper bound up to sampling) of the largest v for which (*) holds
         (with a split and not ``exact``: its sound form N_A - U, which is affine in v as N is; the
         largest of the split's, the ``wider`` split's and, at rate 0, the ``grouped`` stage's, whose
-        estimate is its own, derive.control.grouped_union.Shared.supremum): min over samples and
+        estimate is its own, derive.control.certificate.grouped_union.Shared.supremum): min over samples and
         vertices of 1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A
         itself fails somewhere."""
         own = self._speed_supremum(W, shape, beta, count, exact)

@@ -46,7 +46,7 @@ maps to (``_residual``): m moves with J(theta) theta' at a moving point, and in 
 the frozen-time linearisation has a mode of that motion's rate which the loop does not have
 (r' = K (B d - r) for every state); it gave my3 (3 joints, box 3-5 rad/s) rho = 1 + 6.9 dt at every
 dt, "MOM 0 ms", where the simulated loop tracks. The limit is the largest dt (found by doubling, then
-bisection to 1 %) for which that holds at every operating point of derive.control.grid: configurations
+bisection to 1 %) for which that holds at every operating point of derive.control.sampling.grid: configurations
 within the joint limits times the speeds of the speed box (controller.max_joint_speed, else the URDF's
 velocity limits, else at rest only; the box's vertices and each joint alone at its bound); the figure
 reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite grid.
@@ -55,7 +55,7 @@ linearisation (the limit dt -> 0 of every discretisation, :func:`_continuous_rat
 every point, the limit is "below 1e-7 s" (extreme gains: T2 = 1e-20 puts the MPC poles at
 -1.25e20 1/s), else there is none (the linearised loop is unstable as dt -> 0: not a sampling limit).
 The Jacobians are exact (CasADi's automatic differentiation of the laws' graphs,
-derive.control.linear_loop), evaluated in double precision at every point in one call.
+derive.control.sampling.linear_loop), evaluated in double precision at every point in one call.
 """
 from __future__ import annotations
 
@@ -65,10 +65,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from derive.control.grid import Grid, grid
-from derive.control.linear_loop import SampledLoop
-from derive.control.radius import spectral_radius
-from derive.control.zoh import bound, zoh
+from derive.control.sampling.grid import Grid, grid
+from derive.control.sampling.linear_loop import SampledLoop
+from derive.control.sampling.radius import spectral_radius
+from derive.control.sampling.zoh import bound, zoh
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
@@ -102,7 +102,7 @@ class SampleLimit:
 
 
 def operating_points(d) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The operating points (theta, theta') of derivation ``d``: derive.control.grid (within the
+    """The operating points (theta, theta') of derivation ``d``: derive.control.sampling.grid (within the
     joint limits, speeds up to the speed box; SpecError for a singular J there)."""
     return list(_grid(d).points)
 
@@ -139,7 +139,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
     holds = {} if holds is None else holds
 
     def radii(dt: float, idx: np.ndarray | None = None, rank: bool = False) -> np.ndarray:
-        """The radii at dt (of the points idx, else all) as derive.control.radius.spectral_radius
+        """The radii at dt (of the points idx, else all) as derive.control.sampling.radius.spectral_radius
         gives them without ``exact``: the search compares them with 1 and takes the worst of the
         failing ones; ``rank``: every one exact when one fails (the active set ranks them). At
         DT_MIN the loop's radii lie within about 1e-7 of 1, where stable_bound proves none: their
@@ -247,7 +247,7 @@ def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exac
 def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
                 hold: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring); ``hold``: :func:`derive.control.zoh.zoh` of L at dt when the caller has it."""
+    docstring); ``hold``: :func:`derive.control.sampling.zoh.zoh` of L at dt when the caller has it."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
     Phi, Gam = zoh(L, dt) if hold is None else hold

@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from derive.control.grid import mass_function
+from derive.control.sampling.grid import mass_function
 from derive.dynamics.dag import Memo
 from derive.dynamics.sx import to_sx
 

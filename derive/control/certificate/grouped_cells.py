@@ -1,11 +1,11 @@
-"""Branch and bound over the inner angles for the grouped bound of derive.control.grouped.
+"""Branch and bound over the inner angles for the grouped bound of derive.control.certificate.grouped.
 
 The claim (appendix, eq. a7: V decays when W + W^T - J' > 0 on the box of scale v): in the
 coordinates of S = W + W^T = L L^T (T = L^-1, S becomes I),
 
     G_sigma(theta) = I - v B~_sigma(theta) is positive definite for every inner theta and vertex sigma,
 
-B~ = T B T^T (B: derive.control.grouped, a trigonometric polynomial in the inner angles with
+B~ = T B T^T (B: derive.control.certificate.grouped, a trigonometric polynomial in the inner angles with
 exactly known coefficients), over the inner angles' limits where they span less than a turn and
 their whole turn otherwise (the outer angles: every value). The cell test needs no first-order
 term inside the domain: let theta* minimise lambda_min(G(theta)) over the domain and u* be a unit
@@ -34,12 +34,12 @@ search (unproven: the grouped bound refutes nothing). Values and Hessians at the
 the series, truncated to the frequencies that matter; the dropped terms' absolute sums are added
 (value: to the spectral norm subtracted, Hessian: entrywise), as is the transform's rounding.
 
-Not used by derive.control.certificate: too slow; derive.control.grouped_union decides the same
+Not used by derive.control.certificate: too slow; derive.control.certificate.grouped_union decides the same
 claim with a cell test from the coefficients alone (no Hessian series per cell), and is the stage
 ObserverCertificate(grouped=True) uses. Measured on the Panda (W synthesised for
 the 1 rad/s box, inner angles theta2..theta5, outer theta6, theta7; one core): the grouped bound's
 sampled supremum is 3.67, 94 % of N's own numeric supremum 3.92 (the constant majorant of
-derive.control.split: 26 %), but one decision proves 30 % of it in 6,016 cells (23 s CPU) and 40 %
+derive.control.certificate.split: 26 %), but one decision proves 30 % of it in 6,016 cells (23 s CPU) and 40 %
 in 11,246 cells (45 s; plus 13 s for the series and the W-dependent arrays). B has degree 4 in
 each inner angle and its curvature is large against the slack: about 4 ms a cell, and cells of
 about 0.2 rad near the worst states, so 80 % would need tens of thousands of cells.
@@ -51,9 +51,9 @@ import time
 
 import numpy as np
 
-from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
-from derive.control.grouped import GroupedModel
-from derive.control.grouped_union import domain, first_cells
+from derive.control.certificate.decision import FLOAT_MARGIN, Decision, Verdict, _spectral_norm, halve_cells
+from derive.control.certificate.grouped import GroupedModel
+from derive.control.certificate.grouped_union import domain, first_cells
 
 TAIL = 2e-3          # the dropped terms' spectral bound, relative to || sum_h |C~_h| ||_2: what the truncation may cost
 SERIES_ROUNDING = 1e-11   # relative rounding of B's coefficients (the grid values and the transform)

@@ -1,6 +1,6 @@
 """The observer certificate's outer angles bounded group by group (issue 23): a sharper split.
 
-derive.control.split bounds every Fourier term of J with an outer frequency by a constant
+derive.control.certificate.split bounds every Fourier term of J with an outer frequency by a constant
 majorant, so the terms' dependence on the inner angles and their cancellations are lost (the
 Panda: 26 % of the numeric supremum). Here the terms of J' (appendix, eq. a7: the derivative of
 V = e'^T W^-T J W^-1 e' needs W + W^T - J' > 0) are grouped by their outer frequency g,
@@ -8,7 +8,7 @@ V = e'^T W^-T J W^-1 e' needs W + W^T - J' > 0) are grouped by their outer frequ
     J'(theta, theta'_v) = M_0(theta_in, v) + sum_{g in P} 2 Re(Z_g(theta_in, v) exp(i g.theta_out)),
     Z_g = sum_{f_out = g} (i f.theta'_v) C_f exp(i f_in.theta_in)
 
-(C_f: J's exact Fourier coefficients, derive.control.inertia, n x n, C_-f the conjugate of C_f;
+(C_f: J's exact Fourier coefficients, derive.control.certificate.inertia, n x n, C_-f the conjugate of C_f;
 M_0: the terms without an outer frequency; P: one of each pair g, -g), and each group is bounded
 for every outer angle at once by the matrix inequality 2 Re(A) = A + A^H <= A P^-1 A^H + P (A
 complex symmetric; from (A - P) P^-1 (A - P)^H >= 0, any P > 0) with A = Z_g exp(i g.theta_out),
@@ -25,7 +25,7 @@ shape sh in s_k = sh_k sigma_k) B is a quadratic polynomial in sigma,
 and every basis matrix is a trigonometric polynomial in the inner angles of twice Z's degree.
 :meth:`GroupedModel.series` gives their exact Fourier coefficients (values on a grid of 4 d + 1
 angles per inner angle, d: Z's degree, and the discrete Fourier transform), from which the branch
-and bound (:mod:`derive.control.grouped_cells`) takes values, Hessians and third-derivative bounds.
+and bound (:mod:`derive.control.certificate.grouped_cells`) takes values, Hessians and third-derivative bounds.
 P_g is fixed once per arm and box (W-independent): P_FACTOR times the square root of the mean of
 Re(Z_g Z_g^H) over the inner angles' torus and the vertices (exact, by Parseval). Sound, not
 exact: failing it refutes nothing.
@@ -36,7 +36,7 @@ import itertools
 
 import numpy as np
 
-from derive.control.inertia import ROUNDING, InertiaModel
+from derive.control.certificate.inertia import ROUNDING, InertiaModel
 
 P_FACTOR = 2.0     # P_g = P_FACTOR (mean of Re(Z_g Z_g^H))^1/2: the sampled optimum on the Panda lies near 2
 
@@ -76,7 +76,7 @@ class GroupedModel:
         self.zero = (Fin[keys[zero]], coef[keys[zero]]) if zero in keys else (np.zeros((0, self.m)),
                                                                                np.zeros((0, self.n, self.n)))
         self.groups = [(Fin[keys[g]], coef[keys[g]], np.array(g, dtype=float)) for g in reps]
-        # |J'_computed - J'| <= ROUNDING sum_f |f.s| ||C_f||_F (as derive.control.split)
+        # |J'_computed - J'| <= ROUNDING sum_f |f.s| ||C_f||_F (as derive.control.certificate.split)
         self.rounding = ROUNDING * (np.abs(self.signs @ F.T.astype(float)) @ np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2))))
         self.P = []
         for Fg, Cg, g in self.groups:

@@ -1,6 +1,6 @@
 """The operating points the sample-time analysis linearises at, inside the arm's stated ranges.
 
-Configurations lie within each joint's limits (derive.control.inertia.joint_coordinates, the
+Configurations lie within each joint's limits (derive.control.certificate.inertia.joint_coordinates, the
 same spans the observer certificate covers): a revolute joint over its range [lower, upper], a
 continuous joint, a revolute joint without limits or one whose range spans a turn or more over
 one turn (-pi, pi] (J repeats there), a prismatic joint over its travel in metres (at 0 m when
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from derive.control.inertia import joint_coordinates
+from derive.control.certificate.inertia import joint_coordinates
 from derive.dynamics.sx import batched
 from derive.errors import Problem, SpecError
 

@@ -286,7 +286,7 @@ class InertiaModel:
         inflation of fourier_derivative_bounds). Then |d^3 J/dq_i dq_j dq_k| <= sum_f |C_f| prod
         (the derivative's factor per coordinate) for every q: tight where the sum-of-coefficients
         bound in cos, sin counts cos(a + b) as 2 terms. With every coordinate an angle the series
-        is ``fourier`` (the split, derive.control.split, works on it).
+        is ``fourier`` (the split, derive.control.certificate.split, works on it).
         """
         n, m = self.n, self.m
         poly = [not c.angle for c in self.deps]

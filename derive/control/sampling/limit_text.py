@@ -31,7 +31,7 @@ def _how(d) -> str:
 
 
 def covered(d) -> str:
-    """What the limits cover, in words: the grid's configurations and speeds (derive.control.grid)."""
+    """What the limits cover, in words: the grid's configurations and speeds (derive.control.sampling.grid)."""
     return _grid(d).describe()
 
 

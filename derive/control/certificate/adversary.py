@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from derive.control.inertia import InertiaModel
+from derive.control.certificate.inertia import InertiaModel
 
 
 @dataclass(frozen=True)

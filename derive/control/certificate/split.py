@@ -4,7 +4,7 @@ Branch and bound over every angle J depends on (derive.control.certificate) need
 cells exponential in their count: past four angles (a 6- or 7-joint arm) no budget suffices.
 Here the angles are split into ``inner`` ones, decided by branch and bound as before, and
 ``outer`` ones, bounded for every value at once through J's exact Fourier series (every
-coordinate an angle; derive.control.inertia):
+coordinate an angle; derive.control.certificate.inertia):
 
     J(theta) = sum_f C_f exp(i f.theta) = J_A(theta_inner) + J_R(theta),
 
@@ -39,7 +39,7 @@ import itertools
 
 import numpy as np
 
-from derive.control.inertia import ROUNDING, InertiaModel, fourier_derivative_bounds
+from derive.control.certificate.inertia import ROUNDING, InertiaModel, fourier_derivative_bounds
 
 MAX_INNER = 3        # angles decided by branch and bound
 

@@ -1,7 +1,7 @@
 """Branch and bound over the inner angles for the grouped bound, every speed vertex on shared cells (issue 23).
 
 The claim (appendix, eq. a7: V = e'^T W^-T J W^-1 e' decays when W + W^T - J' > 0 on the box of
-scale v; B the grouped majorant of J' over the outer angles, derive.control.grouped): in the
+scale v; B the grouped majorant of J' over the outer angles, derive.control.certificate.grouped): in the
 coordinates of S = W + W^T = L L^T (T = L^-1),
 
     G_sigma(theta) = I - v B~_sigma(theta) > 0 for every inner theta and every vertex sigma,
@@ -51,7 +51,7 @@ theta7; one core): the grouped bound's supremum is about 92 % of N's own numeric
 decision proves 80 % of N's supremum in 105,000 cells (22 s CPU) and 85 % in 156,000 (33 s), about
 0.2 ms a cell. The alternatives measured: one branch and bound per vertex (the same test, one
 vertex's series a cell) needs 45,000-57,000 cells for each of the 64 vertices at 80 % (about 110 s at 32 us a cell);
-the Hessian at each centre from the series (derive.control.grouped_cells) costs 4 ms a cell for a
+the Hessian at each centre from the series (derive.control.certificate.grouped_cells) costs 4 ms a cell for a
 remainder no smaller on cells of 0.1-0.3 rad.
 """
 from __future__ import annotations
@@ -61,9 +61,9 @@ import time
 
 import numpy as np
 
-from derive.control.certificate import FLOAT_MARGIN, Decision, Verdict, _positive_definite, _spectral_norm, \
+from derive.control.certificate.decision import FLOAT_MARGIN, Decision, Verdict, _positive_definite, _spectral_norm, \
     halve_cells
-from derive.control.grouped import GroupedModel
+from derive.control.certificate.grouped import GroupedModel
 
 TAIL = 1e-3              # the dropped terms' spectral bound per vertex, relative to || sum_h |C~_h| ||_2
 SERIES_ROUNDING = 1e-11  # relative rounding of B's coefficients (grid values, transform, the vertex's sum)

@@ -84,3 +84,22 @@ def test_jaco_starter_runs_at_a_usable_sample_time_with_the_implicit_step(tmp_pa
     assert f"(its decision: {dec.verdict.value}, {dec.cells} cells" in text and dec.verdict is Verdict.PROVED
     capsys.readouterr()
     assert main(["simulate", str(path), "--duration", "0.2", "--controllers", "dobc", "--out", str(tmp_path / "s")]) == 0
+
+
+@pytest.mark.parametrize("verdict, code", [(Verdict.PROVED, 0), (Verdict.UNPROVEN, 1)])
+def test_tune_prints_a_line_to_paste_only_when_it_exits_0(monkeypatch, capsys, verdict, code):
+    """Issue 34 item 1: derive tune exited 1 ("unproven") on the Jaco 2 yet printed a [controller] line to paste;
+    the line now comes with exit 0 only, and an unproven W says there is nothing to paste."""
+    import derive.control.synthesis as synthesis
+
+    def fake(model, box, rate, structure):
+        W = np.eye(len(box)) * 2.0
+        return synthesis.Synthesis(W=W, structure=structure, box=tuple(box), rate=rate,
+                                   decision=Decision(verdict, 7, None, None, 0.0, 0.0), headroom=0.3, samples=1,
+                                   rounds=1, seconds=0.0, norm=2.0)
+
+    monkeypatch.setattr(synthesis, "synthesise", fake)
+    assert main(["tune", str(DATA / "urdf" / "double_pendulum.toml"), "--speed", "1,1"]) == code
+    out = capsys.readouterr().out
+    assert ("[controller] w = [2, 2]" in out) is (code == 0)
+    assert ("no [controller] line to paste: this W is unproven" in out) is (code == 1)

@@ -108,6 +108,10 @@ def run(args: argparse.Namespace) -> int:
         from derive.control.sampling.limit_text import summary_all
 
         sys.stdout.write(f"Sample time of {d.arm.name}: {summary_all(d)}\n")
+        from derive.control.effort import summary as effort_summary
+
+        if (line := effort_summary(d)) is not None:   # stable is not tracking (issue 34 item 2)
+            sys.stdout.write(f"Inputs of {d.arm.name}: {line}\n")
         from derive.control.payload.text import summary as payload_summary
 
         if (line := payload_summary(d)) is not None:

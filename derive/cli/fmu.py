@@ -25,9 +25,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--sample-time", type=float, default=None,
                         help="the FMU's default communication step = the controller's sample time [s] "
                              "(default: the arm file's simulation.sample_time)")
-    parser.add_argument("--observer", default="explicit",
-                        help="the observer step, as derive generate --observer: explicit (forward Euler, the "
-                             "default) or implicit (backward Euler: no observer limit on the sample time)")
+    parser.add_argument("--observer", default=None,
+                        help="the observer step, as derive generate --observer: explicit (forward Euler) or implicit "
+                             "(backward Euler: no observer limit on the sample time); default: the arm file's "
+                             "controller.observer, else explicit")
     parser.add_argument("--out", default="fmu", help="folder the FMU is written to (default: fmu)")
     parser.add_argument("--plant", action="store_true",
                         help="also write <arm>_plant.fmu: the simulation plant of the arm's [simulation] section "
@@ -41,12 +42,14 @@ def run(args) -> int:
     from derive.fmu import check_options, controller_fmu, plant_fmu, write_fmus
     from derive.cli import load_cli_arm
 
-    options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time, args.observer)
+    options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time, args.observer or "explicit")
     out = Path(args.out)
     if out.exists() and not out.is_dir():  # before any work: one clear error, nothing written
         from derive.errors import EmitError
         raise EmitError(f"--out {out}: expected a folder, got a file")
     arm = load_cli_arm(args)
+    if args.observer is None and arm.controller.observer != options.observer:   # the arm file's step
+        options = check_options(args.fmi, args.form, args.real, args.params, args.sample_time, arm.controller.observer)
     d = derive(arm)
     report_warnings(d)
     cc = args.cc or os.environ.get("CC") or "cc"

@@ -20,9 +20,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--real", choices=REALS, default="double", help="C real type (default double)")
     parser.add_argument("--params", choices=[m.value for m in ParamsMode], default="baked",
                         help="parameters folded into constants (baked) or read at run time")
-    parser.add_argument("--observer", choices=OBSERVER_STEPS, default="explicit",
-                        help="the observer's step: explicit (forward Euler of eq. 21, the default) or implicit "
-                             "(backward Euler, (J + dt W) y = ... solved numerically: no W J^-1 sample-time limit)")
+    parser.add_argument("--observer", choices=OBSERVER_STEPS, default=None,
+                        help="the observer's step: explicit (forward Euler of eq. 21) or implicit (backward Euler, "
+                             "(J + dt W) y = ... solved numerically: no W J^-1 sample-time limit); default: the arm "
+                             "file's controller.observer, else explicit")
     parser.add_argument("--regressor", action="store_true",
                         help="also write the identification regressor <arm>_regressor (C, Python, self-test): "
                              "J theta'' + G = Y pi in the base parameters pi (derive identify)")
@@ -38,6 +39,7 @@ def run(args) -> int:
     from derive.progress import progress
 
     arm = load_cli_arm(args)
+    args.observer = args.observer or arm.controller.observer   # the arm file's step unless --observer
     with progress(total=2 + len(GENERATE_STAGES), desc=f"generate {arm.name}", unit="stage") as bar:
         bar.set_postfix_str("derivation")
         d = derive(arm)

@@ -21,7 +21,12 @@ assumption with a comment, the joint limits as comments, the chain's notes
 * ``[simulation] sample_time``: a round value at most 0.45 of the limits
   estimated from W's largest observer rate and the momentum observer's gain, and
   at most half of every limit ``derive show`` states for the file (the sampled
-  loop of every form and observer step over the speed box).
+  loop of every form and observer step over the speed box);
+* ``observer = "implicit"`` under [controller] (the step derive generate, simulate,
+  sweep and fmu build by default) where the forward-Euler step would need a
+  sample time below 0.1 ms and the backward-Euler step's limits allow a longer
+  one (derive.control.starter.choose_observer); a sample time below 0.1 ms
+  that no step avoids is written with the limit that sets it.
 
 It never overwrites a file (checked before the derivation); the URDF path in
 it is relative to the arm file.
@@ -228,21 +233,14 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
         ("# what puts the rates' geometric mean at 20 1/s, more than the observer certificate needs on" if gain.floor
          else "# the smallest omega the observer certificate proves on max_joint_speed, with a margin"),
         ("# max_joint_speed" if gain.floor else "#")
-        + f" (its decision: {gain.decision.verdict.value}, {gain.decision.cells} cells).",
+        + f" (its decision: {gain.decision.verdict.value}, {gain.decision.cells} cells: the decision derive check makes).",
         "# Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",
         f"w = [{rows}]",
     ] + ([f"momentum_gain = [{', '.join(f'{x:.4g}' for x in momentum)}]  # 1/s: the momentum observer's K (r' = K (B d - r)), the "
-          "default 50 scaled with W for the payload"] if momentum is not None else []) + [
+          "default 50 scaled with W for the payload"] if momentum is not None else []) + _observer_lines(gain) + [
         "",
         "[simulation]",
-        f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
-        + "# s: a round value at most 0.45 of each limit estimated from W and the momentum observer's",
-        f"# gain (the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s, 0.9 x: "
-        f"{gain.observer_limit * 1e3:.3g} ms;",
-        f"# the momentum observer's below 2 / K, {gain.momentum_limit * 1e3:.3g} ms), and at most half of each "
-        "limit derive show",
-        "# and derive check state for this file (the sampled loop over the speed box, 0.9 of the largest stable):",
-    ] + _stated_lines(gain.stated)
+    ] + _sample_lines(gain)
     if pose is not None:
         theta0, amp = pose
         lines += [
@@ -279,14 +277,62 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
     return "\n".join(lines + [""])
 
 
+def _ms(x: float) -> str:
+    return "none" if x == 0 else "any" if x == float("inf") else f"{x * 1e3:.3g} ms"
+
+
+def _observer_lines(gain) -> list[str]:
+    """The controller.observer line and why (derive.control.starter.choose_observer), when the starter
+    takes the implicit step."""
+    if gain.observer != "implicit":
+        return []
+    lims = {f: x for o, f, x in gain.stated if o == "explicit" and f in ("dobc", "npid")}
+    mine = {f: x for o, f, x in gain.stated if o == "implicit" and f in ("dobc", "npid")}
+    return [
+        'observer = "implicit"           # the observer step derive generate, simulate, sweep and fmu build (their',
+        "# --observer overrides it): backward Euler. With the forward-Euler step (\"explicit\") the sample time",
+        f"# would be {gain.explicit_time * 1e3:.3g} ms, below 0.1 ms: W J^-1's fastest rate, "
+        f"{_g(gain.rates[1])} 1/s (the rates spread {_g(gain.rates[1] / gain.rates[0])}-fold as J varies",
+        f"# over the ranges), limits its DOBC to {_ms(lims.get('dobc', 0))} and NPID to {_ms(lims.get('npid', 0))}; "
+        f"the implicit step's are DOBC {_ms(mine.get('dobc', 0))},",
+        f"# NPID {_ms(mine.get('npid', 0))}, and MPC and MOM are the same in both (derive show states them all).",
+    ]
+
+
+def _sample_lines(gain) -> list[str]:
+    """The sample_time line and its comment: how it was chosen, and why when it is below 0.1 ms."""
+    from derive.control.starter import USABLE
+
+    hi = gain.rates[1]
+    lines = [f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
+             + "# s: a round value at most 0.45 of each limit estimated from W and the momentum observer's"]
+    if gain.observer == "implicit":
+        lines.append(f"# gain (the momentum observer's below 2 / K, {gain.momentum_limit * 1e3:.3g} ms; the implicit "
+                     "observer step has no 2 / rate bound), at most 2 ms,")
+    else:
+        lines += [f"# gain (the forward-Euler observer step is stable below 2 / {_g(hi)} 1/s, 0.9 x: "
+                  f"{gain.observer_limit * 1e3:.3g} ms;",
+                  f"# the momentum observer's below 2 / K, {gain.momentum_limit * 1e3:.3g} ms), at most 2 ms,"]
+    step = "the implicit" if gain.observer == "implicit" else "the forward-Euler"
+    lines += [f"# and at most half of each limit derive show and derive check state for this file with {step}",
+              "# observer step (the sampled loop over the speed box, 0.9 of the largest stable):"]
+    lines += _stated_lines(gain.stated)
+    if gain.sample_time < USABLE * (1 - 1e-12):
+        rows = [(x, o, f) for o, f, x in gain.stated if o == gain.observer and 0 < x < float("inf")]
+        x, o, f = min(rows) if rows else (0.0, gain.observer, "?")
+        lines += [f"# Below 0.1 ms: {f.upper()}'s limit, {_ms(x)} with the {o} observer step, sets it "
+                  "(no observer step allows more);",
+                  "# simulate costs about 1 / sample_time steps a second: lower max_joint_speed or W, or raise the "
+                  "joints' light inertias"]
+    return lines
+
+
 def _stated_lines(stated) -> list[str]:
     """Comment lines of the sampled loop's limits (StarterGain.stated), per observer step."""
-    def ms(x: float) -> str:
-        return "none" if x == 0 else "any" if x == float("inf") else f"{x * 1e3:.3g} ms"
-
+    ms = _ms
     out = []
-    for observer, label in (("explicit", "forward-Euler observer step (derive generate's default)"),
-                            ("implicit", "--observer implicit")):
+    for observer, label in (("explicit", "forward-Euler observer step (observer = \"explicit\", the default)"),
+                            ("implicit", "backward-Euler step (observer = \"implicit\", --observer implicit)")):
         forms = [(f, x) for o, f, x in stated if o == observer]
         if forms:
             out.append(f"#   {label}: " + ", ".join(f"{f.upper()} {ms(x)}" for f, x in forms))
@@ -328,11 +374,11 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) ->
     ``payload`` range, scaled until the payload limits cover it: derive.control.payload.design), the start
     pose, the loads and the RK4 substeps (derive.cli.init_numbers); the file named by its absolute path."""
     from derive.cli.init_numbers import choose_gain, rk4_substeps, starter_loads, starter_pose, stated_limits
-    from derive.control.starter import fit_to_limits
+    from derive.control.starter import choose_observer, fit_to_limits
 
     gain, _ = choose_gain(starter_text(src, name, notes=notes), out, src.found.chain)
     stated, d = stated_limits(starter_text(src, name, gain=gain, notes=notes), out)
-    gain = fit_to_limits(gain, stated)
+    gain = choose_observer(gain, stated)   # d: the pose, loads and substeps do not depend on the observer step
     momentum, designed = None, ()
     if payload is not None and payload.mass > 0:
         from derive.control.payload.design import describe, design

@@ -84,6 +84,10 @@ def _text(args, encoding: str) -> str:
         from derive.control.sampling.limit_text import summary_all
 
         text += "\n" + textwrap.fill(f"Sample time: {summary_all(d)}", 100, subsequent_indent="  ") + "\n"
+        from derive.control.effort import summary as effort_summary
+
+        if (line := effort_summary(d)) is not None:   # stable is not tracking (issue 34 item 2)
+            text += textwrap.fill(f"Inputs: {line}", 100, subsequent_indent="  ") + "\n"
         from derive.control.payload.text import summary as payload_summary
 
         if (line := payload_summary(d)) is not None:

@@ -30,8 +30,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None, help="folder for plots and metrics.md (default sim/<arm>)")
     parser.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
     parser.add_argument("--duration", type=float, default=None, help="override simulation.duration [s]")
-    parser.add_argument("--observer", choices=("explicit", "implicit"), default="explicit",
-                        help="the controllers' observer step, as derive generate --observer (default explicit)")
+    parser.add_argument("--observer", choices=("explicit", "implicit"), default=None,
+                        help="the controllers' observer step, as derive generate --observer (default: the arm "
+                             "file's controller.observer, else explicit)")
     parser.add_argument("--reference-from-pose", action="store_true",
                         help="start the reference at the arm's initial pose, y_d(0) = C theta(0), the pulse train "
                              "added to it (as [simulation] reference_start = \"measured\"): e(0) = 0, so the "
@@ -370,6 +371,7 @@ def run(args) -> int:
         raise DeriveError(f"--duration: expected a number of seconds > 0, got {args.duration}")
     json_path = Path(args.json) if args.json else None
     arm = load_cli_arm(args)
+    args.observer = args.observer or arm.controller.observer   # the arm file's step unless --observer
     out = Path(args.out) if args.out else Path("sim") / arm.name
     inside = _json_inside(json_path, out)   # in the --out folder: written after it
     if json_path is not None and inside is None:   # fail before minutes of simulation

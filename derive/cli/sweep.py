@@ -31,8 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     parser.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
                         help="run on this Dask scheduler instead of local processes")
-    parser.add_argument("--observer", choices=("explicit", "implicit"), default="explicit",
-                        help="the controllers' observer step, as derive generate --observer (default explicit)")
+    parser.add_argument("--observer", choices=("explicit", "implicit"), default=None,
+                        help="the controllers' observer step, as derive generate --observer (default: the arm "
+                             "file's controller.observer, else explicit)")
     parser.add_argument("--out", default=None, help="output folder (default sweep/<arm>)")
     parser.add_argument("--json", default=None, help="also write sweep.json to this file")
     from derive.cli.simulate import add_plant_arguments
@@ -188,6 +189,7 @@ def run(args) -> int:
     from derive.sim.sweep_plots import envelope_figure, histogram_figure
 
     arm = load_cli_arm(args)
+    args.observer = args.observer or arm.controller.observer   # the arm file's step unless --observer
     spec = arm.sweep
     problems = []
     if spec is None:

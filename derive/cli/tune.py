@@ -1,8 +1,8 @@
 """``derive tune [ARM] [--speed V1,V2,...] [--rate BETA] [--structure chen|full] [--json FILE]``:
 the smallest observer gain W certified on a speed box at a rate (derive.control.certificate.synthesis).
 
-Prints W, ||W||_2, the certificate's verdict and the ``w = ...`` line to put in the arm file's
-[controller]. The box is ``--speed`` or the arm's max_joint_speed; one of them is needed.
+Prints W, ||W||_2, the certificate's verdict and, when it is proved (exit 0), the ``w = ...`` line to
+put in the arm file's [controller]; an unproven W gets no such line and exit 1. The box is ``--speed`` or the arm's max_joint_speed; one of them is needed.
 """
 from __future__ import annotations
 
@@ -85,12 +85,18 @@ def run(args: argparse.Namespace) -> int:
            f"{structure} structure",
            f"W = {rows} {unit}, ||W||_2 = {syn.norm:.6g}",
            f"certificate: {syn.decision.verdict.value} ({syn.decision.cells} cells; program headroom {syn.headroom:g}, "
-           f"{syn.rounds} solves, {syn.samples} constraints, {syn.seconds:.1f} s)",
-           f"[controller] {line}"]
+           f"{syn.rounds} solves, {syn.samples} constraints, {syn.seconds:.1f} s)"]
+    proved = syn.decision.verdict.value == "proved"
+    if proved:
+        out.append(f"[controller] {line}")
+    else:   # exit 1: nothing to paste (issue 34 item 1: it printed a gain to paste and exited 1)
+        out.append(f"no [controller] line to paste: this W is {syn.decision.verdict.value} on the box, so derive "
+                   "check would not certify it; keep the arm file's w (derive check states its decision), lower "
+                   "--speed, or pass --structure full")
     sys.stdout.write("\n".join(out) + "\n")
     if args.json is not None:
         doc = {"arm": arm.name, "box_rad_per_s": list(box), "rate_per_s": rate, "structure": structure,
                "W": rows, "W_unit": unit, "norm": syn.norm, "certificate": syn.decision.verdict.value, "cells": syn.decision.cells,
                "headroom": syn.headroom, "seconds": round(syn.seconds, 3)}
         write_text(args.json, jsonio.dumps(doc, sort_keys=False))
-    return 0 if syn.decision.verdict.value == "proved" else 1
+    return 0 if proved else 1

@@ -33,7 +33,12 @@ loop's limits can be far lower (the xArm6, b = 1 N m s/rad on a 1e-4 kg m^2 wris
 against 2.73 ms estimated, MOM 0.743 ms against 36 ms). So :func:`fit_to_limits` then takes the limits
 ``derive show`` and ``derive check`` state (derive.control.sampling: the sampled loop of every form, both
 observer steps, over the speed box) for the W written, and the sample time is at most STATED_HEADROOM of
-the smallest.
+the smallest of the observer step's own limits.
+
+Where that leaves less than USABLE (0.1 ms) with the forward-Euler observer step, :func:`choose_observer`
+takes the backward-Euler step (``--observer implicit``, ``controller.observer = "implicit"``) when its
+limits allow a longer sample time: its DOBC and NPID have no 2 / rate_max bound (the Kinova Jaco 2, whose
+J varies 3000-fold over the ranges: 0.024 ms forward-Euler, DOBC 6.48 ms and NPID 35.7 ms implicit, issue 34).
 """
 from __future__ import annotations
 
@@ -48,6 +53,7 @@ from derive.control.certificate import Decision, InertiaModel, ObserverCertifica
 MARGIN = 1.3         # omega over the smallest the certificate's numeric supremum allows
 RAISE = 1.3          # omega's factor when the sound decision does not prove it within BUDGET cells
 TRIES = 8
+USABLE = 1e-4        # s: below this sample time the starter takes the implicit observer step where it allows more
 FIRST_BUDGET = 20_000   # cells of the first try (derive check's budget: what proves here proves there)
 BUDGET = 5000        # cells of each later try (omega raised: fewer cells needed)
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
@@ -77,6 +83,8 @@ class StarterGain:
     seconds: float
     floor: bool = False   # omega is FLOOR's (the rates' geometric mean), not the certificate's need
     stated: tuple[tuple[str, str, float], ...] = ()   # (observer, form, limit [s]) of the sampled loop (fit_to_limits)
+    observer: str = "explicit"    # the observer step the sample time is fitted to (choose_observer)
+    explicit_time: float | None = None   # s: the forward-Euler step's sample time, when the implicit step was chosen
 
 
 def _round(x: float) -> float:
@@ -117,6 +125,8 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
         dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET if attempt == 0 else budget)
         if dec.verdict is Verdict.PROVED:
             break
+    if dec.verdict is not Verdict.PROVED:   # the decision derive check makes (its budget): the file states that one
+        dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET)
     lam = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, W, Li))      # eigenvalues of W J^-1
     rates = (float(lam[:, 0].min()), float(lam[:, -1].max()))
     observer = 0.9 * 2.0 / rates[1]
@@ -130,9 +140,25 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
 def fit_to_limits(gain: StarterGain, stated: dict[str, dict]) -> StarterGain:
     """``gain`` with its sample time at most STATED_HEADROOM of the smallest positive finite limit of
     ``stated`` ({observer: {form: derive.control.sampling.SampleLimit}}, the sampled loop of the arm file
-    as written) and no larger than before; the limits kept in ``gain.stated``. A form without a positive
-    finite limit (unstable as dt -> 0, or stable at every dt) sets none."""
+    as written) with ``gain.observer``'s step, and no larger than before; every limit kept in
+    ``gain.stated``. A form without a positive finite limit (unstable as dt -> 0, or stable at every dt)
+    sets none."""
     rows = tuple((observer, form, lim.limit) for observer, forms in stated.items() for form, lim in forms.items())
-    usable = [x for _, _, x in rows if 0 < x < math.inf]
+    usable = [x for o, _, x in rows if o == gain.observer and 0 < x < math.inf]
     dt = gain.sample_time if not usable else min(gain.sample_time, round_sample_time(STATED_HEADROOM * min(usable)))
     return replace(gain, sample_time=dt, stated=rows)
+
+
+def choose_observer(gain: StarterGain, stated: dict[str, dict]) -> StarterGain:
+    """The observer step and the sample time of the starter file (module docstring): the forward-Euler
+    step's (fit_to_limits) when it is at least USABLE, else the backward-Euler step's (limits: the
+    momentum observer's estimate, MAX_SAMPLE_TIME and STATED_HEADROOM of its stated limits) when that is
+    longer, with the forward-Euler sample time kept in ``explicit_time`` for the file to state."""
+    explicit = fit_to_limits(replace(gain, observer="explicit"), stated)
+    if explicit.sample_time >= USABLE * (1 - 1e-12):
+        return explicit
+    base = round_sample_time(min(MAX_SAMPLE_TIME, HEADROOM * gain.momentum_limit))
+    implicit = fit_to_limits(replace(gain, observer="implicit", sample_time=base), stated)
+    if implicit.sample_time > explicit.sample_time:
+        return replace(implicit, explicit_time=explicit.sample_time)
+    return explicit

@@ -73,6 +73,7 @@ _ZERO = Fraction(0)
 
 
 OBSERVER_STRUCTURES = ("chen", "full")
+OBSERVER_STEPS = ("explicit", "implicit")   # controller.observer: the default of --observer (derive.codegen.kernels)
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,9 @@ class Controller:
     [1/s]: the exponential rate the observer certificate must give (0: any).
     ``momentum_gain``: the diagonal gain K [1/s] of the generalized-momentum observer
     (form mom, derive.control.momentum: r' = K (B d - r)), one per joint; empty when the
-    arm file does not give it (MOMENTUM_GAIN for every joint).
+    arm file does not give it (MOMENTUM_GAIN for every joint). ``observer``: the observer step the
+    commands build by default (their ``--observer``): "explicit" (forward Euler of eq. 21) or
+    "implicit" (backward Euler; ``derive init`` writes it where only it allows a usable sample time).
     """
 
     T1: Fraction
@@ -100,6 +103,7 @@ class Controller:
     observer_rate: Fraction = Fraction(0)
     observer_structure: str = "chen"
     momentum_gain: tuple[Fraction, ...] = ()   # K of the momentum observer [1/s]; () = MOMENTUM_GAIN each
+    observer: str = "explicit"   # the observer step of the commands' default build (OBSERVER_STEPS)
 
 
 @dataclass(frozen=True)
@@ -333,7 +337,8 @@ MJCF_ONLY = ("base_body", "tip_body")
 FILE_ONLY = ("locked",)   # a URDF's or an MJCF's
 CONTROLLER_KEYS = {"T1": NONNEGATIVE["s"].expected, "T2": POSITIVE["s"].expected,
                    "w": "an array of observer gains, one per joint (eq. 25)", "C": None, "max_joint_speed": None,
-                   "observer_rate": None, "observer_structure": None, "momentum_gain": None}
+                   "observer_rate": None, "observer_structure": None, "momentum_gain": None,
+                   "observer": None}
 KINEMATICS = ("one [[link]] table per joint, base to tip (a planar arm), a [dh] table with [[body]] tables, "
               "or urdf = \"robot.urdf\" or mjcf = \"robot.xml\" under [arm]")
 W_EXPECTED = ("an array of n observer gains w_j > 0 [N m s/rad] (W[i][j] = w_j for j <= i, eq. 25), an n x n array "
@@ -564,6 +569,10 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
     if structure not in OBSERVER_STRUCTURES or ("observer_structure" in d and not auto):
         r.add("controller.observer_structure", "'chen' or 'full', with w = 'auto' (the structure of the "
               "synthesised W)", show(structure) + ("" if auto else " (w is not 'auto')"))
+    step = d.get("observer", "explicit")
+    if step not in OBSERVER_STEPS:
+        r.add("controller.observer", "'explicit' or 'implicit' (the observer step the commands build by default)",
+              show(step))
     if auto and "max_joint_speed" not in d:
         r.add("controller.max_joint_speed", "the speed box [rad/s] W is synthesised for (w = 'auto')",
               "nothing (the key is missing)")
@@ -572,7 +581,8 @@ def _controller(r: Reader, value: Any, n: int | None) -> Controller | None:
         return None
     return Controller(T1, T2, w, C, tuple(speeds) if speeds else None, W=W, w_auto=auto, observer_rate=rate,
                       momentum_gain=tuple(momentum) if momentum else (),
-                      observer_structure=structure if structure in OBSERVER_STRUCTURES else "chen")
+                      observer_structure=structure if structure in OBSERVER_STRUCTURES else "chen",
+                      observer=step if step in OBSERVER_STEPS else "explicit")
 
 
 def _observer_gain(r: Reader, d: dict, n: int | None) -> tuple[tuple | None, tuple | None, bool]:

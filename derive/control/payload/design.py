@@ -82,7 +82,7 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
     while True:
         tries += 1
         dt = current.sample_time
-        lims = {f: payload_limit(d, f, "explicit", dt, rng) for f in OBSERVER_FORMS}
+        lims = {f: payload_limit(d, f, getattr(current, "observer", "explicit"), dt, rng) for f in OBSERVER_FORMS}
         held = min(lim.limit for lim in lims.values())
         K = tuple(x * k for x in base_k)
         if held >= rng.mass or tries >= TRIES or dt < 2 * MIN_SAMPLE_TIME:

@@ -1,13 +1,14 @@
 """The payload limits (derive.control.payload.limits) as ``derive show`` and ``derive check`` state them,
 text and JSON: per form, the largest payload the linearised sampled loop holds at the arm file's sample
-time, the forward-Euler observer step (derive generate's default), over the ``[payload]`` ball."""
+time, the arm file's observer step (controller.observer: forward Euler unless it says implicit), over the
+``[payload]`` ball."""
 from __future__ import annotations
 
 from derive.control.payload.design import OBSERVER_FORMS
 from derive.control.payload.limits import CAP_FACTOR, MARGIN, PayloadLimit, payload_limit
 from derive.control.sampling import FORMS
 
-OBSERVER = "explicit"
+OBSERVER = "explicit"   # derive generate's default step, unless the arm file's controller.observer says otherwise
 
 
 def stated(d) -> dict[str, PayloadLimit] | None:
@@ -20,7 +21,7 @@ def stated(d) -> dict[str, PayloadLimit] | None:
     if hit is not None and hit[0] is d:
         return hit[1]
     dt = d.arm.simulation.sample_time
-    out = {f: payload_limit(d, f, OBSERVER, dt, rng) for f in FORMS}
+    out = {f: payload_limit(d, f, d.arm.controller.observer, dt, rng) for f in FORMS}
     _CACHE.clear()
     _CACHE[id(d)] = (d, out)
     return out
@@ -46,7 +47,8 @@ def summary(d) -> str | None:
     verdict = (f"every observer form holds the stated {rng.mass:g} kg" if not short else
                f"{', '.join(short)} do{'es' if len(short) == 1 else ''} NOT hold the stated {rng.mass:g} kg")
     return (f"largest payload at sample_time = {d.arm.simulation.sample_time * 1e3:g} ms (linearised sampled loop, "
-            f"forward-Euler observer step, worst of {lims['dobc'].centres} centres of mass in the [payload] ball, "
+            f"{'forward' if d.arm.controller.observer == OBSERVER else 'backward'}-Euler observer step, "
+            f"worst of {lims['dobc'].centres} centres of mass in the [payload] ball, "
             f"{int(round((1 - MARGIN) * 100))} % margin; MPC has no observer): {parts}; {verdict}")
 
 
@@ -57,7 +59,7 @@ def record(d) -> dict | None:
         return None
     rng = d.arm.payload
     return {"range": {"mass": rng.mass, "com": list(rng.com), "com_radius": rng.com_radius},
-            "sample_time": d.arm.simulation.sample_time, "observer": OBSERVER, "margin": MARGIN,
+            "sample_time": d.arm.simulation.sample_time, "observer": d.arm.controller.observer, "margin": MARGIN,
             "forms": {f: {"limit_kg": lim.limit, "largest_stable_kg": lim.raw, "at_least": lim.capped,
                           "cap_kg": CAP_FACTOR * max(rng.mass, 0.5) if lim.capped else None,
                           "holds": bool(lim.limit >= rng.mass),

@@ -66,7 +66,7 @@ def test_jaco_starter_runs_at_a_usable_sample_time_with_the_implicit_step(tmp_pa
     its certificate comment states derive check's own decision (proved: the same W, box and cell budget); derive
     simulate builds the implicit step without --observer and does not refuse the sample time (measured: the 120 s
     experiment in 20 s CPU, 285 MiB, against 279 s and 7.6 GB at 10 us)."""
-    from derive.control.cert_report import inertia_model
+    from derive.control.certificate.report import inertia_model
     from derive.control.certificate import DEFAULT_BUDGET, ObserverCertificate
 
     urdf = tmp_path / "jaco.urdf"
@@ -90,7 +90,7 @@ def test_jaco_starter_runs_at_a_usable_sample_time_with_the_implicit_step(tmp_pa
 def test_tune_prints_a_line_to_paste_only_when_it_exits_0(monkeypatch, capsys, verdict, code):
     """Issue 34 item 1: derive tune exited 1 ("unproven") on the Jaco 2 yet printed a [controller] line to paste;
     the line now comes with exit 0 only, and an unproven W says there is nothing to paste."""
-    import derive.control.synthesis as synthesis
+    import derive.control.certificate.synthesis as synthesis
 
     def fake(model, box, rate, structure):
         W = np.eye(len(box)) * 2.0

@@ -1,7 +1,7 @@
 """The inputs the speed box's operating points need, against the motors' limits (issue 34 item 2).
 
 The sample-time limits (derive.control.sampling) linearise the sampled loop at operating points
-(theta0, theta0') of derive.control.grid: configurations within the joint limits times the speed box's
+(theta0, theta0') of derive.control.sampling.grid: configurations within the joint limits times the speed box's
 vertices and each joint alone at its bound. At such a point the loop holds theta'' = 0, the observer's
 estimate vanishes and every form applies
 

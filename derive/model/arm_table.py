@@ -5,20 +5,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
-import sympy as sp
+
 from derive.errors import Problem
-from derive.model.actuators import  actuation_value, terms
+from derive.model.actuators import actuation_value, terms
 from derive.model.chain import Actuation, Chain
-from derive.model.fields import (ANY, NONNEGATIVE, Reader,
-                                 show)
+from derive.model.controller import _MISSING, _ZERO
+from derive.model.fields import ANY, NONNEGATIVE, Reader, show
 from derive.model.fields import path as field_path
 from derive.model.names import name_check
 from derive.model.singular import unmoved_joint
-from derive.model.controller import (T1_SYMBOL, T2_SYMBOL, CONTROLLER_KEYS, Controller, MOMENTUM, MOMENTUM_GAIN,
-                                     OBSERVER_STEPS, OBSERVER_STRUCTURES, RATE, W_EXPECTED, _MISSING, _ZERO,
-                                     _controller, _matrix, _observer_gain, _vector, controller_parameters,
-                                     full_w_symbols, gain_unit, gain_units_text, momentum_parameters,
-                                     momentum_symbols, observer_parameters, w_symbols)  # noqa: F401 (moved, re-exported)
 
 
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",

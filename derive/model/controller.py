@@ -5,17 +5,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
+
 import sympy as sp
-from derive.model.chain import    Parameter
-from derive.model.fields import (ANY, NONNEGATIVE, POSITIVE, Num, Reader, domain, fmt, inline,
-                                 show)
+
+from derive.model.chain import Parameter
+from derive.model.fields import ANY, NONNEGATIVE, POSITIVE, Num, Reader, domain, fmt, inline, show
 from derive.model.rules import division_free_det, horizon
 
-
 T1_SYMBOL, T2_SYMBOL = sp.Symbol("T1", **domain(NONNEGATIVE["s"])), sp.Symbol("T2", **domain(POSITIVE["s"]))
-_MISSING = object()
-
-
+_MISSING = object()   # a key the file leaves out (a sentinel: TOML has no null)
 _ZERO = Fraction(0)
 
 

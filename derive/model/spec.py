@@ -50,26 +50,25 @@ import sympy as sp
 
 from derive.errors import Problem, SpecError
 from derive.model.actuators import Motor, actuator, input_unit, read_motors
-from derive.model.chain import  Actuator, Chain, Parameter
-from derive.model.fields import (TEXT_RULE, Reader, domain, inline, printable,
-                                 show, text_problem)
+from derive.model.chain import Actuator, Chain, Parameter
+from derive.model.fields import TEXT_RULE, Reader, domain, inline, printable, show, text_problem
 from derive.model.override import apply_overrides
 from derive.model.payload import PayloadRange, parse_payload
 from derive.model.planar import UNIFORM_ROD, Link, PointMass, planar_chain, read_links, read_point_masses
 from derive.model.simspec import SimSettings, parse_simulation
 from derive.model.rigid import rational_unit
-
 from derive.model.sweepspec import SweepSpec, parse_sweep
 from derive.paths import ARMS_DIR, DEFAULT_ARM, packaged_arms, resolve_arm_path  # noqa: F401 (re-exported)
 from derive.model.controller import (T1_SYMBOL, T2_SYMBOL, CONTROLLER_KEYS, Controller, MOMENTUM, MOMENTUM_GAIN,
                                      OBSERVER_STEPS, OBSERVER_STRUCTURES, RATE, W_EXPECTED, _MISSING, _ZERO,
                                      _controller, _matrix, _observer_gain, _vector, controller_parameters,
                                      full_w_symbols, gain_unit, gain_units_text, momentum_parameters,
-                                     momentum_symbols, observer_parameters, w_symbols)  # noqa: F401 (moved, re-exported)
+                                     momentum_symbols, observer_parameters, w_symbols)  # noqa: F401 (re-exported)
 from derive.model.arm_table import (ARM_KEYS, FILE_ONLY, GRAVITY, KINEMATICS, MJCF_ONLY, NO_NULL, URDF_ONLY, _Head,
-                                    _direction, _head, _kind, _moves_inertia, _nones, unmoved_inertia)  # noqa: F401 (moved, re-exported)
+                                    _direction, _head, _kind, _moves_inertia, _nones, unmoved_inertia)  # noqa: F401 (re-exported)
 
 __all__ = ["Arm", "Controller", "Link", "Motor", "PointMass", "UNIFORM_ROD", "load_arm", "arm_from_dict"]
+
 MAX_FILE_BYTES = 1 << 20   # an arm file is a few kB; never read /dev/zero whole
 
 

@@ -72,7 +72,7 @@ from derive.model.urdf_rules import (chain_mimics, check_inertials, held_values,
 from derive.model.urdf_xml import parse_safely
 from derive.model.urdf_elements import (_BODY_NAMES, _INERTIA_INDEX, _dynamics, _dynamics_notes, _joint_field,
                                         _limits, _link_body, _link_field, _motion, _origin, _unit_axis, _value,
-                                        _zero_limit_notes, angle_notes)  # noqa: F401 (moved, re-exported)
+                                        _zero_limit_notes, angle_notes)  # noqa: F401 (re-exported)
 
 MOVING = {"revolute": JointType.REVOLUTE, "continuous": JointType.CONTINUOUS, "prismatic": JointType.PRISMATIC}
 

@@ -246,7 +246,7 @@ def test_init_sample_time_fits_the_sampled_loop_when_a_joints_viscous_damping_bi
     dt = arm.simulation.sample_time
     assert dt == round_sample_time(0.5 * min(stated)) and dt < 1e-3      # the sampled loop set it
     text = path.read_text()
-    for observer, forms in (("forward-Euler", limits(d, "explicit")), ("--observer implicit", limits(d, "implicit"))):
+    for observer, forms in (("forward-Euler", limits(d, "explicit")), ("backward-Euler step", limits(d, "implicit"))):
         line = next(x for x in text.splitlines() if x.startswith(f"#   {observer}"))
         assert all(f"{form.upper()} {lim.limit * 1e3:.3g} ms" in line for form, lim in forms.items()), line
     capsys.readouterr()

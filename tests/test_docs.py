@@ -148,3 +148,18 @@ def test_metrics_table_is_the_committed_run():
     for _, label in bench.FORMS:
         assert f"| {label} | 1 / 2 | " in table
     assert bench.substitute("<!-- metrics: default experiment -->") == table
+
+
+def test_readme_is_a_landing_page_whose_links_exist():
+    """The README is the landing page (issue 36): under 250 lines, the two set-up commands, and every
+    relative link and image it names exists."""
+    import re
+
+    root = Path(__file__).resolve().parent.parent
+    text = (root / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) < 250
+    assert "make generate" in text and "make test" in text
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    assert targets, "no links"
+    missing = [t for t in targets if not t.startswith("http") and not (root / t).exists()]
+    assert missing == []

@@ -172,6 +172,9 @@ TABLES: tuple[Table, ...] = (
                 "the pattern of the synthesised W"),
               K("momentum_gain", "1/s", "50 for every joint", PER_JOINT + " > 0",
                 "K of the generalized-momentum observer (form mom)"),
+              K("observer", "", '"explicit"', '"explicit" or "implicit"',
+                "the observer step generate, simulate, sweep and fmu build unless --observer says otherwise "
+                "(forward Euler, or the backward-Euler step of eq. 21)"),
           )),
     Table("[simulation]", "derive.model.simspec:KEYS",
           "What the plant of `derive simulate`, `derive sweep` and the plant FMU has that the controller does "

@@ -249,8 +249,11 @@ class InertiaModel:
         angle = {c.symbol: c.angle for c in self.deps}
         zero = (0,) * len(deps)
         memo: dict = {}
+        depset = set(deps)
+        moves: dict = {}   # whether a subexpression holds a dep (children first: linear in the graph)
         for e in postorder([sp.sympify(x) for x in J]):
-            if not (e.free_symbols & set(deps)):
+            moves[e] = e in depset if e.is_Symbol else any(moves[a] for a in e.args)
+            if not moves[e]:
                 memo[e] = zero
             elif e.is_Symbol:
                 memo[e] = None if angle[e] else tuple(int(q == e) for q in deps)
@@ -258,7 +261,7 @@ class InertiaModel:
                 coeffs = [sp.sympify(e.args[0]).coeff(q) for q in deps]
                 rest = sp.expand(e.args[0] - sum(c * q for c, q in zip(coeffs, deps)))
                 ok = all(c.is_Integer and (c == 0 or angle[q]) for c, q in zip(coeffs, deps))
-                memo[e] = tuple(abs(int(c)) for c in coeffs) if ok and not (rest.free_symbols & set(deps)) else None
+                memo[e] = tuple(abs(int(c)) for c in coeffs) if ok and not (rest.free_symbols & depset) else None
             elif any(memo[a] is None for a in e.args):
                 memo[e] = None
             elif e.is_Add:

@@ -1,0 +1,161 @@
+"""Sound bounds of J(theta) and its derivatives at a cost polynomial in the joints.
+
+J's exact series (derive.control.inertia: a grid of prod (2 d_k + 1) points) costs 5^m for m
+angles: 5^11 rows for a 12-joint chain. Past a budget the certificate's bounds come from here:
+
+1. sup |J_ab| over every theta: interval arithmetic over J's expression graph (each distinct
+   subexpression once: cost linear in the graph), an angle's cos and sin in [-1, 1], a prismatic
+   coordinate in its travel, every operation rounded outward; and, J being positive semi-definite,
+   |J_ab| <= sqrt(sup J_aa sup J_bb).
+2. The derivatives from the degrees alone (Bernstein's inequality): a trigonometric polynomial p
+   of degree d in an angle has sup |dp/dq| <= d sup |p| over the turn, and a polynomial of degree d
+   in t in [-1, 1] has sup |p^(o)| <= T_d^(o)(1) sup |p| (V. A. Markov; T_d the Chebyshev
+   polynomial), t = (q - mid) / half. A derivative of J is still such a polynomial in every other
+   coordinate, so the factors multiply: sup |d^3 J_ab / dq_i dq_j dq_k| <= f_i f_j f_k S_ab.
+
+Both are sound for every theta (not only within the joint limits); both are looser than the
+series (the certificate then needs more cells or ends ``unproven``, which it states). Cost: the
+graph once, then m^3 n^2 numbers.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+
+from derive.dynamics.program import postorder
+
+_UP = 1.0 + 4.0 * np.finfo(float).eps   # outward rounding of every operation (relative)
+_TINY = 1e-300
+
+
+def _out(lo: float, hi: float) -> tuple[float, float]:
+    """[lo, hi] widened by a few units in the last place (each operation's rounding)."""
+    return lo - abs(lo) * (_UP - 1) - _TINY, hi + abs(hi) * (_UP - 1) + _TINY
+
+
+def _mul(a, b):
+    p = (a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1])
+    return _out(min(p), max(p))
+
+
+def _pow(a, e: int):
+    if e == 0:
+        return (1.0, 1.0)
+    lo, hi = a
+    if e % 2 == 0:
+        top = max(abs(lo), abs(hi)) ** e
+        bottom = 0.0 if lo <= 0 <= hi else min(abs(lo), abs(hi)) ** e
+        return _out(bottom, top)
+    return _out(lo ** e, hi ** e)
+
+
+def _trig(f, a):
+    """sin or cos of an interval: its endpoints' values and the extrema inside."""
+    lo, hi = a
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo >= 2 * math.pi:
+        return (-1.0, 1.0)
+    shift = 0.0 if f is math.cos else math.pi / 2      # sin x = cos(x - pi/2)
+    x0, x1 = lo - shift, hi - shift
+    vals = [math.cos(x0), math.cos(x1)]
+    if math.floor(x1 / (2 * math.pi)) > math.floor(x0 / (2 * math.pi)) or x0 <= 0 <= x1:
+        vals.append(1.0)
+    k = math.floor((x0 - math.pi) / (2 * math.pi))
+    if (k + 1) * 2 * math.pi + math.pi <= x1:
+        vals.append(-1.0)
+    lo_, hi_ = _out(min(vals), max(vals))
+    return max(lo_, -1.0), min(hi_, 1.0)
+
+
+def interval_bounds(exprs, boxes: dict) -> list[tuple[float, float]]:
+    """[lower, upper] of each expression for every value of its symbols in ``boxes``
+    (symbol -> (lo, hi); a symbol absent is an error), sound under floating-point rounding.
+    Operations: +, *, integer powers (a negative one of an interval without 0), sin, cos,
+    numbers; any other raises ValueError. Cost: one pass over the distinct subexpressions."""
+    memo: dict = {}
+    for e in postorder([sp.sympify(x) for x in exprs]):
+        if e.is_Symbol:
+            lo, hi = boxes[e]
+            memo[e] = (float(lo), float(hi))
+        elif e.is_Number or (not e.free_symbols and e.is_real):
+            v = float(sp.N(e, 20)) if not e.is_Float else float(e)
+            memo[e] = _out(v, v)
+        elif e.is_Add:
+            lo = hi = 0.0
+            for a in e.args:
+                lo, hi = _out(lo + memo[a][0], hi + memo[a][1])
+            memo[e] = (lo, hi)
+        elif e.is_Mul:
+            acc = (1.0, 1.0)
+            for a in e.args:
+                acc = _mul(acc, memo[a])
+            memo[e] = acc
+        elif e.is_Pow and e.exp.is_Integer:
+            k = int(e.exp)
+            base = memo[e.base]
+            if k < 0:
+                if base[0] <= 0 <= base[1]:
+                    raise ValueError(f"interval bound: 1/x of an interval holding 0 ({base})")
+                base = _out(1.0 / base[1], 1.0 / base[0])
+                k = -k
+            memo[e] = _pow(base, k)
+        elif isinstance(e, (sp.sin, sp.cos)):
+            memo[e] = _trig(math.sin if isinstance(e, sp.sin) else math.cos, memo[e.args[0]])
+        else:
+            raise ValueError(f"interval bound: no rule for {type(e).__name__}")
+    return [memo[sp.sympify(x)] for x in exprs]
+
+
+def markov_factor(degree: int, order: int) -> float:
+    """T_d^(o)(1) = prod_{j<o} (d^2 - j^2) / (2 j + 1): V. A. Markov's bound of the o-th derivative
+    of a degree-d polynomial on [-1, 1] relative to its supremum (0 for o > d)."""
+    out = 1.0
+    for j in range(order):
+        out *= max(degree * degree - j * j, 0) / (2 * j + 1)
+    return out
+
+
+def degree_bounds(S: np.ndarray, degrees, angle, half, fourth: bool = False) -> tuple[np.ndarray, ...]:
+    """Bounds of |d^2 J|, |d^3 J| (and |d^4 J| with ``fourth``): m x m x n x n, m x m x m x n x n, ...
+    from sup |J_ab| <= S (n x n), the degree per coordinate (m), whether it is an angle, and a
+    prismatic coordinate's half travel (Bernstein per angle, Markov per length, module docstring).
+    Cost m^4 n^2 at most."""
+    m, n = len(degrees), S.shape[0]
+
+    def f(k: int, o: int) -> float:
+        if angle[k]:
+            return float(degrees[k]) ** o
+        return markov_factor(int(degrees[k]), o) / float(half[k]) ** o
+
+    orders = (2, 3, 4) if fourth else (2, 3)
+    out = []
+    for o in orders:
+        w = np.ones((m,) * o)
+        idx = np.indices((m,) * o).reshape(o, -1).T
+        flat = w.reshape(-1)
+        for r, t in enumerate(idx):
+            value = 1.0
+            for k in set(t.tolist()):
+                value *= f(k, int(np.count_nonzero(t == k)))
+            flat[r] = value
+        out.append(w[..., None, None] * S * (1 + 1e-12))
+    return tuple(out)
+
+
+def supremum_matrix(J: sp.Matrix, deps, spans) -> np.ndarray:
+    """S (n x n) with |J_ab(theta)| <= S_ab for every theta: angles over the whole turn (as
+    Bernstein's inequality needs), lengths over ``spans`` (module docstring, item 1)."""
+    n = J.rows
+    boxes = {}
+    for c, span in zip(deps, spans):
+        boxes[c.symbol] = (-4.0, 4.0) if c.angle else span   # any interval of width >= 2 pi: cos, sin in [-1, 1]
+    flat = [J[i, j] for i in range(n) for j in range(i, n)]
+    ivs = iter(interval_bounds(flat, boxes))
+    S = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            lo, hi = next(ivs)
+            S[i, j] = S[j, i] = max(abs(lo), abs(hi))
+    d = np.sqrt(np.diag(S))
+    return np.minimum(S, np.outer(d, d) * (1 + 1e-12))

@@ -36,6 +36,7 @@ from enum import Enum
 import numpy as np
 
 from derive.control.inertia import Coordinate, InertiaModel, joint_coordinates
+from derive.control.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
 from derive.control.split import MAX_INNER, SplitModel, split_model
 
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
@@ -149,10 +150,17 @@ class ObserverCertificate:
                 self.grouped = GroupedStage(model, box)
         self.target = self.split if self.split is not None else model
         self.inner = list(self.split.inner) if self.split is not None else list(range(m))
-        self.all_signs = np.array(list(itertools.product((1.0, -1.0), repeat=m))) if m else np.zeros((1, 0))
+        # many coordinates without J's series: one matrix bound (derive.control.norm_bound), sampled vertices
+        self.norm = (self.split is None and m > MAX_VERTEX_DEPS and not model.unbounded
+                     and getattr(model, "bounded_by", "") == "degrees")
+        self.all_signs = sign_patterns(m)
+        if self.norm:
+            self.inner = []
         # the vertices the decision ranges over: every dep's sign, or the inner ones' with a split
         self.signs = np.ones((2 ** len(self.inner), m))
         self.signs[:, self.inner] = np.array(list(itertools.product((1.0, -1.0), repeat=len(self.inner))))
+        if self.norm:
+            self.signs = self.all_signs
 
     # -- numbers at points -------------------------------------------------------------------
     def speeds(self, shape, v: float, exact: bool = False) -> np.ndarray:
@@ -206,6 +214,8 @@ class ObserverCertificate:
         if md.m <= 2:
             per = max(4, per - per % 4)   # holds the quarter turns, where sin is +-1
         axes = [np.linspace(*span, per, endpoint=not periodic) for span, periodic in zip(md.spans, md.periodic)]
+        if per ** md.m > 2 * count:   # 2^m corners alone past the count: random points only
+            axes = [np.array([(lo + hi) / 2]) for lo, hi in md.spans]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, md.m)
         rng = np.random.default_rng(seed)
         lo = np.array([span[0] for span in md.spans])
@@ -261,6 +271,8 @@ class ObserverCertificate:
 
         if self.model.unbounded:
             return done(Verdict.UNPROVEN, 0)
+        if self.norm:
+            return self._decide_norm(W, shape, v, beta, done)
         if md.m == 0 and split is None:
             lam, _ = self.lowest(W, shape, v, beta, np.zeros((1, 0)))
             ok = lam[0] > tol
@@ -376,6 +388,22 @@ class ObserverCertificate:
                 centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
 
+    def _decide_norm(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, done) -> Decision:
+        """(*) by one matrix bound for every theta and speed (derive.control.norm_bound); a refutation
+        only from N itself at seeded samples and sampled vertices. One cell."""
+        sc = np.outer(self.model.scale, self.model.scale)
+        tol = FLOAT_MARGIN * (1 + np.linalg.norm((W + W.T) * sc, 2))
+        q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, EXACT_SAMPLES), exact=True)
+        lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, exact=True))[..., 0]
+        i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
+        worst = (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi]))
+        if lam[i, vi] <= 0:
+            return done(Verdict.REFUTED, 1, None, worst, float(lam[i, vi]))
+        bound = norm_lower_bound(self.model, W, shape, v, beta)
+        if bound > tol:
+            return done(Verdict.PROVED, 1, bound, None, float(lam[i, vi]))
+        return done(Verdict.UNPROVEN, 1, None, worst, float(lam[i, vi]))
+
     def _grouped_for(self, shape, beta: float) -> bool:
         """Whether the grouped stage applies: it exists, rate 0, and the box has its shape."""
         return self.grouped is not None and beta == 0.0 and np.array_equal(
@@ -399,7 +427,7 @@ class ObserverCertificate:
         return own
 
     def _speed_supremum(self, W, shape, beta: float, count: int, exact: bool) -> float:
-        q = self.samples(count, exact=exact)
+        q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, count) if self.norm else count, exact=exact)
         W = np.asarray(W, dtype=float)
         A = self.matrices(W, shape, 0.0, beta, q, exact)[:, 0]
         if np.linalg.eigvalsh(A)[:, 0].min() <= 0:
@@ -430,7 +458,7 @@ class ObserverCertificate:
         return max(own, self.wider._rate_supremum(W, shape, v, count, exact))
 
     def _rate_supremum(self, W, shape, v: float, count: int, exact: bool) -> float:
-        q = self.samples(count, exact=exact)
+        q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, count) if self.norm else count, exact=exact)
         W = np.asarray(W, dtype=float)
         N0 = self.matrices(W, shape, v, 0.0, q, exact)
         R = -(self.matrices(W, shape, 0.0, 0.5, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))[:, 0]

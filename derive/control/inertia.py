@@ -27,6 +27,10 @@ from derive.dynamics.trigpoly import constant_angles
 
 FULL_TURN = 2.0 * math.pi
 ROUNDING = 1e-12   # relative rounding of the discrete Fourier transform's coefficients
+# J's exact series costs prod(2 d_k + 1) n^2 values (5^m n^2 for a chain): past this many, the bounds
+# come from J's supremum and its degrees (derive.control.interval: cost polynomial in n, looser)
+SERIES_BUDGET = 1 << 23
+FOURTH_BUDGET = 1 << 22   # m^4 n^2 numbers of the fourth-derivative bounds from the degrees
 
 
 def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray, polynomial=None, half=None,
@@ -151,6 +155,7 @@ class InertiaModel:
         self.fourier: tuple[np.ndarray, np.ndarray] | None = None   # (C_f: K x n x n, f: K x m)
         self._series = None   # (coefficients, frequencies or powers, polynomial flags, half-widths)
         self._fourth: np.ndarray | None = None
+        self.bounded_by = "series"   # how second, third are bounded: "series", "coefficients", "degrees"
         self.scale = np.ones(n)   # D^-1: 1 / sqrt of J's diagonal at the middle of the spans (the certificate's scale)
         if self.unbounded:
             return
@@ -167,8 +172,13 @@ class InertiaModel:
                 lo, hi = c.span
                 if c.angle and (hi - lo >= FULL_TURN or (c.lower is None and c.upper is None)):
                     self.spans[k], self.periodic[k] = (-math.pi, math.pi), True
-            self._series_bounds(degrees)
+            points = math.prod(d + 1 if not c.angle else 2 * d + 1 for d, c in zip(degrees, self.deps))
+            if points * n * n <= SERIES_BUDGET:
+                self._series_bounds(degrees)
+            else:
+                self._degree_bounds(J, degrees)
         else:
+            self.bounded_by = "coefficients"
             self._coefficient_bounds(J)
 
     # -- numbers -----------------------------------------------------------------------------
@@ -275,6 +285,7 @@ class InertiaModel:
         degs = [memo[sp.sympify(x)] for x in J]
         if any(d is None for d in degs):
             return None
+        self.entry_degrees = np.array(degs, dtype=int).reshape(self.n, self.n, len(deps))   # per entry (n x n x m)
         return [max(d[k] for d in degs) for k in range(len(deps))]
 
     def _series_bounds(self, deg: list[int]) -> None:
@@ -315,12 +326,40 @@ class InertiaModel:
         self._series = (coef, F, poly, half)
         self.second, self.third = fourier_derivative_bounds(coef, F, poly, half)
 
+    def _degree_bounds(self, J: sp.Matrix, deg: list[int]) -> None:
+        """Bounds of the 2nd and 3rd derivatives from sup |J| and J's degrees (Bernstein, Markov:
+        derive.control.interval), for a J whose series is past SERIES_BUDGET. Cost: one pass over
+        J's graph and m^3 n^2 numbers."""
+        from derive.control.interval import degree_bounds, supremum_matrix
+
+        self.bounded_by = "degrees"
+        angle = [c.angle for c in self.deps]
+        half = [1.0 if a else max((c.span[1] - c.span[0]) / 2, 1e-300) for a, c in zip(angle, self.deps)]
+        self.supremum = supremum_matrix(J, self.deps, self.spans)
+        self._degree_args = (self.supremum, self.entry_degrees, angle, half)
+        self.second, self.third = degree_bounds(*self._degree_args)
+
+    def first(self) -> np.ndarray:
+        """Bounds of |dJ/dq_k| valid for every q (m x n x n), from the degrees (only after
+        :meth:`_degree_bounds`)."""
+        from derive.control.interval import markov_factor
+
+        S, deg, angle, half = self._degree_args
+        f = [deg[..., k] if a else np.vectorize(markov_factor)(deg[..., k], 1) / h
+             for k, (a, h) in enumerate(zip(angle, half))]
+        return np.array(f, dtype=float) * S[None] * (1 + 1e-12)
+
     @property
     def fourth(self) -> np.ndarray | None:
         """Bounds of |d^4 J/dq_h dq_i dq_j dq_k| valid for every q (m x m x m x m x n x n), from
-        the series (None without one: the coefficient bounds stop at the third derivative)."""
+        the series or the degrees (None without either, or past FOURTH_BUDGET numbers: the
+        coefficient bounds stop at the third derivative)."""
         if self._fourth is None and self._series is not None:
             self._fourth = fourier_derivative_bounds(*self._series, fourth=True)[2]
+        if self._fourth is None and self.bounded_by == "degrees" and self.m ** 4 * self.n ** 2 <= FOURTH_BUDGET:
+            from derive.control.interval import degree_bounds
+
+            self._fourth = degree_bounds(*self._degree_args, fourth=True)[2]
         return self._fourth
 
     def _coefficient_bounds(self, J: sp.Matrix) -> None:

@@ -19,6 +19,7 @@ graph once, then m^3 n^2 numbers.
 """
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -116,30 +117,31 @@ def markov_factor(degree: int, order: int) -> float:
     return out
 
 
-def degree_bounds(S: np.ndarray, degrees, angle, half, fourth: bool = False) -> tuple[np.ndarray, ...]:
+def degree_bounds(S: np.ndarray, degrees: np.ndarray, angle, half, fourth: bool = False) -> tuple[np.ndarray, ...]:
     """Bounds of |d^2 J|, |d^3 J| (and |d^4 J| with ``fourth``): m x m x n x n, m x m x m x n x n, ...
-    from sup |J_ab| <= S (n x n), the degree per coordinate (m), whether it is an angle, and a
-    prismatic coordinate's half travel (Bernstein per angle, Markov per length, module docstring).
-    Cost m^4 n^2 at most."""
-    m, n = len(degrees), S.shape[0]
-
-    def f(k: int, o: int) -> float:
-        if angle[k]:
-            return float(degrees[k]) ** o
-        return markov_factor(int(degrees[k]), o) / float(half[k]) ** o
-
+    from sup |J_ab| <= S (n x n), each entry's degree in each coordinate (``degrees``: n x n x m; 0
+    where the entry does not depend on it, so its derivatives there are 0), whether a coordinate is
+    an angle, and a prismatic coordinate's half travel (Bernstein per angle, Markov per length,
+    module docstring). Cost m^4 n^2 at most."""
+    m = degrees.shape[-1]
+    mk = np.vectorize(markov_factor, otypes=[float])
     orders = (2, 3, 4) if fourth else (2, 3)
+    top = max(orders)
+    # factor[k][o]: the bound of the o-th derivative in coordinate k relative to the sup, per entry (n x n)
+    factor = [[np.asarray(degrees[..., k], dtype=float) ** o if angle[k] else mk(degrees[..., k], o) / float(half[k]) ** o
+               for o in range(top + 1)] for k in range(m)]
     out = []
     for o in orders:
-        w = np.ones((m,) * o)
-        idx = np.indices((m,) * o).reshape(o, -1).T
-        flat = w.reshape(-1)
-        for r, t in enumerate(idx):
-            value = 1.0
-            for k in set(t.tolist()):
-                value *= f(k, int(np.count_nonzero(t == k)))
-            flat[r] = value
-        out.append(w[..., None, None] * S * (1 + 1e-12))
+        w = np.empty((m,) * o + S.shape)
+        for t in itertools.product(range(m), repeat=o):
+            if any(t[i] > t[i + 1] for i in range(o - 1)):
+                continue
+            value = S * (1 + 1e-12)
+            for k in set(t):
+                value = value * factor[k][t.count(k)]
+            for perm in set(itertools.permutations(t)):
+                w[perm] = value
+        out.append(w)
     return tuple(out)
 
 

@@ -36,7 +36,8 @@ from enum import Enum
 import numpy as np
 
 from derive.control.inertia import Coordinate, InertiaModel, joint_coordinates
-from derive.control.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
+from derive.control.norm_bound import (MAX_VERTEX_DEPS, norm_lower_bound, norm_rate_bound, norm_speed_bound,
+                                       sample_count, sign_patterns)
 from derive.control.split import MAX_INNER, SplitModel, split_model
 
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
@@ -417,6 +418,8 @@ class ObserverCertificate:
         estimate is its own, derive.control.grouped_union.Shared.supremum): min over samples and
         vertices of 1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A
         itself fails somewhere."""
+        if self.norm and not exact:   # what the one-matrix bound proves (derive.control.norm_bound)
+            return norm_speed_bound(self.model, np.asarray(W, dtype=float), np.asarray(shape, dtype=float), beta)
         own = self._speed_supremum(W, shape, beta, count, exact)
         if exact:
             return own
@@ -452,6 +455,8 @@ class ObserverCertificate:
         min over samples and vertices of lambda_min(R^-1/2 N(beta = 0) R^-1/2) / 2, R = J (with a
         split and not ``exact``: N_A - U is affine in beta too, R = J_A + U(0, 1/2); the larger of
         the split's and the ``wider`` split's)."""
+        if self.norm and not exact:
+            return norm_rate_bound(self.model, np.asarray(W, dtype=float), np.asarray(shape, dtype=float), v)
         own = self._rate_supremum(W, shape, v, count, exact)
         if exact or self.wider is None:
             return own

@@ -62,6 +62,15 @@ def norm_speed_bound(model, W: np.ndarray, shape: np.ndarray, beta: float) -> fl
     return float("inf") if slope <= 0 else at0 / slope
 
 
+def norm_rate_bound(model, W: np.ndarray, shape: np.ndarray, v: float) -> float:
+    """The largest beta :func:`norm_lower_bound` proves on the box of scale v, 0 when none."""
+    at0 = norm_lower_bound(model, W, shape, v, 0.0)
+    slope = at0 - norm_lower_bound(model, W, shape, v, 1.0)
+    if at0 <= 0:
+        return 0.0
+    return float("inf") if slope <= 0 else at0 / slope
+
+
 def sample_count(vertices: int, n: int, want: int) -> int:
     """Points per batch of sampled N: ``want``, fewer so that points x vertices x n^2 <= ELEMENTS."""
     return int(max(8, min(want, ELEMENTS // max(1, vertices * n * n))))

@@ -75,12 +75,14 @@ def interval_bounds(exprs, boxes: dict) -> list[tuple[float, float]]:
     Operations: +, *, integer powers (a negative one of an interval without 0), sin, cos,
     numbers; any other raises ValueError. Cost: one pass over the distinct subexpressions."""
     memo: dict = {}
+    const: dict = {}   # a subexpression without symbols (children first: no tree walk per node)
     for e in postorder([sp.sympify(x) for x in exprs]):
+        const[e] = not e.is_Symbol and all(const[a] for a in e.args)
         if e.is_Symbol:
             lo, hi = boxes[e]
             memo[e] = (float(lo), float(hi))
-        elif e.is_Number or (not e.free_symbols and e.is_real):
-            v = float(sp.N(e, 20)) if not e.is_Float else float(e)
+        elif const[e]:
+            v = float(e) if e.is_Float else float(sp.N(e, 20))
             memo[e] = _out(v, v)
         elif e.is_Add:
             lo = hi = 0.0

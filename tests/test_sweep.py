@@ -28,6 +28,8 @@ coulomb_friction = { distribution = "lognormal", median = 1.0, sigma = 0.5, low 
 disturbance = { distribution = "normal", mean = 0.0, sd = 0.3, low = -0.5, high = 0.5 }
 link_mass = { distribution = "uniform", low = 0.9, high = 1.1 }
 velocity_noise = { distribution = "uniform", low = 0.0, high = 0.01 }
+payload_mass = { distribution = "uniform", low = 0.0, high = 0.3 }
+payload_com = { distribution = "uniform", low = -0.05, high = 0.05 }
 
 [[sweep.criterion]]
 metric = "steady_state_error"
@@ -75,6 +77,9 @@ def test_sweep_json_is_byte_identical_for_1_and_2_workers_and_a_dask_cluster(swe
     for name in ("envelope.png", "histograms.png", "summary.md", "worst_dobc.toml"):
         assert (one[0] / name).stat().st_size > 500, name
     assert (one[0] / "envelope.png").read_bytes() == (two[0] / "envelope.png").read_bytes()
+    drawn = data["results"]["dobc"]["worst"]["parameters"]   # issue 38: the payload drawn, its com per component
+    assert 0.0 <= drawn["payload_mass"] <= 0.3 and len(drawn["payload_com"]) == 3, drawn
+    assert all(-0.05 <= x <= 0.05 for x in drawn["payload_com"]), drawn
 
 
 def test_worst_sample_rerun_with_simulate_gives_the_reported_metric(sweeps, tmp_path):

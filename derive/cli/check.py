@@ -31,10 +31,11 @@ def project_obligations() -> tuple[Obligation, ...]:
     from derive.proofs import arm as proofs_arm
     from derive.proofs import certificate as proofs_certificate
     from derive.proofs import dynamics as proofs_dynamics
+    from derive.proofs import payload as proofs_payload
     from derive.proofs import project as proofs_project
 
     return (*proofs_project.OBLIGATIONS, *proofs_arm.OBLIGATIONS, *proofs_dynamics.OBLIGATIONS,
-            *proofs_certificate.OBLIGATIONS)
+            *proofs_certificate.OBLIGATIONS, *proofs_payload.OBLIGATIONS)
 
 
 def paper_obligations() -> tuple[Obligation, ...]:
@@ -107,6 +108,10 @@ def run(args: argparse.Namespace) -> int:
         from derive.control.limit_text import summary_all
 
         sys.stdout.write(f"Sample time of {d.arm.name}: {summary_all(d)}\n")
+        from derive.control.payload.text import summary as payload_summary
+
+        if (line := payload_summary(d)) is not None:
+            sys.stdout.write(f"Payload of {d.arm.name}: {line}\n")
     if args.report is not None:
         write_file(args.report, render_markdown(d, results, seconds, code))
     if args.json is not None:

@@ -14,6 +14,7 @@ with ``--strict``; a refusal (the solver short of its accuracy, a fit that expla
 little of the torque) writes the report but not the arm file, unless ``--force``. Nothing
 is written when the logs cannot give the parameters.
 Then ``derive generate identified.toml`` regenerates the controller.
+With ``--payload`` only the payload on the last body is identified (derive.cli.identify_payload).
 """
 from __future__ import annotations
 
@@ -32,16 +33,17 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI: derive identify [ARM] LOG [LOG ...] [--out FILE] [--report DIR] [--cutoff HZ] [--coulomb]
-    [--exclude RULES] [--prior-uncertainty R] [--force] [--strict]."""
+    [--exclude RULES] [--prior-uncertainty R] [--payload LOG ...] [--force] [--strict]."""
     from derive.cli import add_arm_argument
     from derive.identify import CUTOFF
     from derive.identify.prior import PRIOR_UNCERTAINTY
 
     add_arm_argument(parser)
-    parser.add_argument("logs", nargs="+", metavar="LOG",
+    parser.add_argument("logs", nargs="*", metavar="LOG",
                         help="the logged runs (CSV: t, theta1..n, tau1..n | current1..n | u1..n, optional dtheta1..n "
                              "and valid); a glob in quotes ('runs/*.csv') is expanded")
-    parser.add_argument("--out", type=Path, default=None, help="the identified arm file (default <arm>_identified.toml)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="the identified arm file (default <arm>_identified.toml; --payload: <arm>_payload.toml)")
     parser.add_argument("--report", type=Path, default=None, help="the report folder (default <out>_report)")
     parser.add_argument("--cutoff", type=float, default=CUTOFF,
                         help=f"cut-off of the zero-phase low-pass filter [Hz] (default {CUTOFF:g})")
@@ -56,12 +58,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how well the arm file's masses, centres of mass and inertias are known, relative (one "
                              f"standard deviation; default {PRIOR_UNCERTAINTY:g}): what the data does not see stays "
                              "at the file's values")
+    parser.add_argument("--payload", nargs="+", metavar="LOG", default=None,
+                        help="identify from these logs only the payload on the last body (mass, centre of mass, "
+                             "inertia about it; the rest is the arm file's) and write it into [payload]; with "
+                             "--coulomb also each moving joint's viscous and Coulomb friction (reported only)")
     parser.add_argument("--force", action="store_true",
                         help="write the arm file although the solver fell short of its accuracy or the fit explains "
                              "too little of the torque; identify Coulomb friction on one-signed joints")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.payload is not None:
+        from derive.cli.identify_payload import run as run_payload
+        return run_payload(args)
+    if not args.logs and not (args.arm is not None and str(args.arm).lower().endswith(".csv")):
+        raise DataError("identify: expected at least one LOG (a CSV file of a logged run) after the arm file")
     from derive.cli import load_cli_arm
     from derive.codegen.emit import write_file, write_tree
     from derive.identify.armfile import identified_text

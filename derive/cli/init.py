@@ -56,6 +56,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--xacro-arg", action="append", metavar="NAME:=VALUE",
                         help="an argument of a xacro file (repeat it for several, e.g. --xacro-arg ur_type:=ur10e); "
                         "the expanded URDF is written beside the arm file")
+    parser.add_argument("--payload", metavar="MASS",
+                        help="design for payloads from 0 to MASS kg (the vendor's rated payload): writes a [payload] "
+                             "table and scales W, the momentum gains and the sample time until the linearised sampled "
+                             "loop of DOBC, NPID and MOM holds it at the worst centre of mass (derive.control.payload)")
+    parser.add_argument("--payload-com", metavar="X,Y,Z", default="0,0,0",
+                        help="the payload's nominal centre of mass in the tip link's frame [m] (default 0,0,0)")
+    parser.add_argument("--payload-radius", metavar="R", default="0.15",
+                        help="the ball around --payload-com the centre of mass may lie in [m] (default 0.15)")
     parser.add_argument("--repair-inertia", action="store_true",
                         help="move each inertia of the chain that is not physical (not positive semi-definite, or "
                         "breaking the triangle inequality) to the nearest physical one and write repair_inertia "
@@ -130,12 +138,15 @@ def _vector(values) -> str:
 
 
 def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple[str, ...] = (),
-                 substeps: int | None = None, pose=None, loads=None) -> str:
+                 substeps: int | None = None, pose=None, loads=None, payload=None, momentum=None,
+                 designed: tuple[str, ...] = ()) -> str:
     """The arm file for the chain of ``src`` (derive.cli.init_source.Source; see the module
     docstring), naming ``rel`` (the file's path relative to the arm file; default: ``src.path``).
     ``gain``: the derive.control.starter.StarterGain to write (None: a draft whose W is J's
     scale-free placeholder, for reading the chain back). ``notes``: init's own notes (the
-    name's), written before the chain's."""
+    name's), written before the chain's. ``payload``: the [payload] range to write
+    (derive.model.payload.PayloadRange), ``momentum``: the momentum observer's gains K when not the
+    default, ``designed``: the comment lines of the payload design (derive.control.payload.design)."""
     chain, found, word = src.found.chain, src.found, src.word
     key, base_key, tip_key = src.keys
     n = chain.n
@@ -220,6 +231,8 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
         + f" (its decision: {gain.decision.verdict.value}, {gain.decision.cells} cells).",
         "# Replace it by your own, or by w = \"auto\" (derive tune prints the smallest ||W||).",
         f"w = [{rows}]",
+    ] + ([f"momentum_gain = [{', '.join(f'{x:.4g}' for x in momentum)}]  # 1/s: the momentum observer's K (r' = K (B d - r)), the "
+          "default 50 scaled with W for the payload"] if momentum is not None else []) + [
         "",
         "[simulation]",
         f"sample_time = {gain.sample_time:g}" + " " * max(1, 20 - len(f"{gain.sample_time:g}"))
@@ -253,6 +266,16 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
             + "# RK4 steps per sample: the plant's stiffest mode at the initial pose (the joints' friction",
             "# as a smooth Coulomb law, its slope over the joint inertia) needs h lambda <= 2.785",
         ]
+    if payload is not None:
+        c = ", ".join(_g(x) for x in payload.com)
+        lines += ["", "[payload]",
+                  f"mass = {_g(payload.mass)}" + " " * max(1, 22 - len(_g(payload.mass)))
+                  + "# kg: the controller must hold every payload from 0 to this (derive init --payload)",
+                  f"com = [{c}]" + " " * max(1, 20 - len(c)) + "# m, in the tip link's frame: the nominal centre of mass",
+                  f"com_radius = {_g(payload.com_radius)}" + " " * max(1, 16 - len(_g(payload.com_radius)))
+                  + "# m: the centre of mass may lie anywhere within this ball around com",
+                  "# inertia = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]  # kg m^2 about the centre of mass "
+                  "at mass; default: a solid sphere of 5 cm radius", *designed]
     return "\n".join(lines + [""])
 
 
@@ -300,8 +323,9 @@ def _umask() -> int:
     return mask
 
 
-def _numbers(src, name: str, notes: tuple[str, ...], out: Path) -> str:
-    """The starter text with its numbers: W and the sample time, fitted to the stated limits, the start
+def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) -> str:
+    """The starter text with its numbers: W and the sample time, fitted to the stated limits (and, with a
+    ``payload`` range, scaled until the payload limits cover it: derive.control.payload.design), the start
     pose, the loads and the RK4 substeps (derive.cli.init_numbers); the file named by its absolute path."""
     from derive.cli.init_numbers import choose_gain, rk4_substeps, starter_loads, starter_pose, stated_limits
     from derive.control.starter import fit_to_limits
@@ -309,11 +333,58 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path) -> str:
     gain, _ = choose_gain(starter_text(src, name, notes=notes), out, src.found.chain)
     stated, d = stated_limits(starter_text(src, name, gain=gain, notes=notes), out)
     gain = fit_to_limits(gain, stated)
+    momentum, designed = None, ()
+    if payload is not None and payload.mass > 0:
+        from derive.control.payload.design import describe, design
+        from derive.model.spec import MOMENTUM_GAIN
+
+        def restate(g, K):
+            text = starter_text(src, name, gain=g, notes=notes, momentum=K, payload=payload)
+            limits, dd = stated_limits(text, out)
+            return fit_to_limits(g, limits), dd
+
+        pd = design(gain, d, (float(MOMENTUM_GAIN),) * src.found.chain.n, payload, restate)
+        if pd.factor != 1.0:
+            gain, momentum = pd.gain, pd.momentum_gain
+            _, d = restate(gain, momentum)
+        designed = tuple(describe(pd, payload))
     pose = starter_pose(d)
     loads = starter_loads(d, pose[0] if pose else None)
     substeps = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
     return starter_text(src, name, gain=gain, notes=notes, substeps=substeps if substeps > SimSettings.substeps
-                        else None, pose=pose, loads=loads)   # defaults unsaid
+                        else None, pose=pose, loads=loads, payload=payload, momentum=momentum,
+                        designed=designed)   # defaults unsaid
+
+
+def _payload_range(args):
+    """The [payload] range of ``--payload MASS`` (with --payload-com, --payload-radius), or None;
+    DeriveError (exit 2) for an impossible value, before anything is read or written."""
+    if args.payload is None:
+        return None
+    import math
+
+    from derive.model.fields import Reader
+    from derive.model.payload import parse_payload
+
+    def number(text: str, option: str) -> float:
+        try:
+            x = float(text)
+        except ValueError:
+            raise DeriveError(f"{option}: expected a finite number, got {text!r}") from None
+        if not math.isfinite(x):
+            raise DeriveError(f"{option}: expected a finite number, got {text!r}")
+        return x
+
+    com = [number(x, "--payload-com") for x in args.payload_com.split(",")]
+    table = {"mass": number(args.payload, "--payload"), "com": com,
+             "com_radius": number(args.payload_radius, "--payload-radius")}
+    r = Reader()
+    rng = parse_payload(r, table, "payload")
+    if r.problems:
+        p = r.problems[0]
+        option = {"payload.mass": "--payload", "payload.com_radius": "--payload-radius"}.get(p.field, "--payload-com")
+        raise DeriveError(f"{option}: expected {p.expected}, got {p.given}")
+    return rng
 
 
 def _default_out(path: Path) -> Path:
@@ -340,6 +411,7 @@ def run(args) -> int:
         raise DeriveError(f"--out: expected a file in an existing folder, got {args.out} "
                           f"(no folder {Path(args.out).parent})")
     out = Path(args.out) if args.out else _default_out(given)
+    payload = _payload_range(args)   # before reading anything
     with tempfile.TemporaryDirectory(prefix="derive-init-") as scratch:
         src = read_source(args, Path(scratch))
         found = src.found
@@ -353,7 +425,7 @@ def run(args) -> int:
                 _write_new(path, "")
         name, renamed = _name(src.robot or src.path.name.split(".")[0], args.name, src.whence)
         notes = (renamed,) if renamed else ()
-        text = _numbers(src, name, notes, out)
+        text = _numbers(src, name, notes, out, payload)
         final = expanded.name if expanded is not None else \
             os.path.relpath(src.path.resolve(), out.resolve().parent).replace(os.sep, "/")
         text = text.replace(f" = {_string(str(src.path.resolve()))}\n", f" = {_string(final)}\n", 1)

@@ -84,4 +84,8 @@ def _text(args, encoding: str) -> str:
         from derive.control.limit_text import summary_all
 
         text += "\n" + textwrap.fill(f"Sample time: {summary_all(d)}", 100, subsequent_indent="  ") + "\n"
+        from derive.control.payload.text import summary as payload_summary
+
+        if (line := payload_summary(d)) is not None:
+            text += textwrap.fill(f"Payload: {line}", 100, subsequent_indent="  ") + "\n"
     return text

@@ -292,7 +292,8 @@ def _runs(d, sources, names, backend_kind: str, settings, observer: str, progres
     from derive.sim.simulate import run_many
 
     if backend_kind == "compiled":
-        loop = cache.get("loop", lambda: build(d, observer, sources))
+        payload = settings.payload_mass > 0   # J_p, G_p only when the run has a payload (derive.sim.plants.build)
+        loop = cache.get("loop_payload" if payload else "loop", lambda: build(d, observer, sources, payload))
         out = []
         with bar(total=len(names) * len(sources), desc="simulating", unit="run", disable_bar=not progress) as b:
             for src in sources:

@@ -49,6 +49,8 @@ def simulation_table(s) -> dict:
             continue
         if (f.name == "amplitude" and not v) or (f.name == "amplitude_deg" and s.amplitude):
             continue                            # one of the two: per joint, else amplitude_deg for all
+        if (f.name == "payload_mass" and not v) or (f.name == "payload_com" and not (v and s.payload_mass)):
+            continue                            # no payload: the file's own default ([payload] com) stands
         out[f.name] = list(v) if isinstance(v, tuple) else v
     return out
 
@@ -211,7 +213,9 @@ def run(args) -> int:
     stiff = stiffest_mode(d, arm.simulation, plant.coulomb(d, arm.simulation))
     if not stiff["stable"]:   # at the arm file's [simulation]; the samples vary around it
         print(f"derive: warning: {stiffness_words(stiff, arm.simulation)}", file=sys.stderr)
-    payload = Payload(arm=arm, loop=plants.build(d, args.observer, (plant,)), names=spec.controllers, plant=plant)
+    carried = arm.simulation.payload_mass > 0 or any(name == "payload_mass" for name, _ in spec.vary)
+    payload = Payload(arm=arm, loop=plants.build(d, args.observer, (plant,), carried), names=spec.controllers,
+                      plant=plant)
     executor, workers, scatter, close = _executor(args, samples)
     try:
         with progress(total=samples, desc="sweep", unit="sample") as bar:

@@ -305,8 +305,9 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
-    from derive.fmu.plant import plant_kernels, plant_parameters
+    from derive.fmu.plant import payload_shape_words, plant_kernels, plant_parameters
     from derive.model.simspec import pulse_amplitudes
+    from derive.sim.plant import payload_com
     from derive.sim.start import reference_offset
 
     arm = d.arm
@@ -342,10 +343,15 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
          "it; 0, or C theta0 for simulation.reference_start = \"measured\" (set it with theta0)",
          tuple(float(v) for v in reference_offset(d, s))),
     )
-    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),)
+    vectors += (("payload_com", "m", "component {i} (x, y, z) of the payload's centre of mass in the tip link's "
+                 "frame (simulation.payload_com)", payload_com(d, s)),)
+    scalars = (("period", "s", "period of the pulse train (simulation.pulse_period, section 5.2)", s.pulse_period),
+               ("payload_mass", "kg", "mass of a rigid payload on the tip, J + J_p, G + G_p (eq. 12; "
+                "simulation.payload_mass; its inertia: " + payload_shape_words(d) + ")", s.payload_mass))
     every = tuple(known.get(str(sym)) or Parameter(sym, value, "", "", "") for sym, value in values)
     single, rules = fmu_rules(every, {str(sym): f"m->p[{k}]" for k, (sym, _) in enumerate(values)}, "double",
                               bodies=arm.spatial.bodies if arm.spatial is not None else ())
+    single["payload_mass"] = ("value >= 0", "0.0", ">= 0")
     found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi, arm.input_units, single)
     if fmi == 3:
         units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name))
@@ -354,7 +360,7 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
     return PlantView(
         fmi=fmi, model=model, model_name=model,
         description=xml_text(f"simulation plant of arm {arm.name} ([simulation] of its arm file): the true arm "
-                             f"with friction, heavier tip, input disturbance and {input_word(arm.input_units)} limits "
+                             f"with friction, heavier tip, payload, input disturbance and {input_word(arm.input_units)} limits "
                              "(eq. 12), and the "
                              "reference Gr(s) = 1/(s^2 + 1.8 s + 1) of a pulse train (section 5.2); RK4 with "
                              f"{s.substeps} substeps per communication step"),

@@ -17,6 +17,13 @@ of length H holds u and the pulse r(t) (zero-order hold) and takes
 one to one to a controller FMU's inputs. Sensor noise and the tachometer filter
 are not part of the plant FMU (an importer adds its own).
 
+A rigid payload on the tip (derive.dynamics.payload: J + J_p, G + G_p) is set by the tunable
+parameters ``payload_mass`` [kg] and ``payload_com[1..3]`` [m, the tip link's frame] (defaults:
+``[simulation] payload_mass`` and the run's centre of mass, derive.sim.plant.payload_com); the
+FMU computes the ten payload parameters from them (kernel ``payload``): the centre of mass turned
+into F_n, the inertia about it ``payload_mass`` times the unit-mass shape of the arm file's
+``[payload]`` inertia (its inertia over its mass), else of the 5 cm solid sphere.
+
 Kernels (CasADi, printed to C double by derive.codegen.printing):
 
 =============  ====================================  =========================================
@@ -26,8 +33,12 @@ pulse          t, start (n), period, amplitude (n),  r (n): yd0 + amplitude in e
                yd0
 amplifier      u, u_max (n)                          u_a: u clipped where u_max > 0
 reference      f = (y_d, y_d') (2n), r               y_d'' = r - 1.8 y_d' - y_d (derive.sim.kernels)
-rk4            x, f, u_a, d, tau_c, b, r, H, p       one RK4 substep of length H/substeps (derive.sim.kernels)
+rk4            x, f, u_a, d, tau_c, b, r, H, p,      one RK4 substep of length H/substeps (derive.sim.kernels),
+               payload_mass, payload_com (3)         p followed by payload(payload_mass, payload_com)
 =============  ====================================  =========================================
+
+(``payload``: payload_mass, payload_com (3) -> the ten parameters of derive.dynamics.payload.NAMES,
+composed into ``rk4``.)
 
 J is never inverted: the forward dynamics solve J y = rhs numerically (a CasADi
 linear solve printed as arithmetic).
@@ -37,6 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
+import numpy as np
 import sympy as sp
 
 from derive.codegen.printing import print_function
@@ -67,6 +79,40 @@ def plant_parameters(d: Derivation, s: SimSettings) -> tuple[tuple[tuple[sp.Symb
     return tuple((sym, value[sym]) for sym in plant_symbols(d)), plant
 
 
+def payload_shape(d: Derivation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """R (3 x 3) and p (3) of the tip link's frame in F_n (derive.model.chain.Chain.tip; identity and
+    0 when the tip is F_n), and the payload's inertia per kilogram about its centre of mass in F_n
+    (3 x 3, m^2): the ``[payload]`` table's inertia over its mass, else the 5 cm solid sphere's."""
+    from derive.dynamics.payload import sphere_inertia
+
+    tip = d.dynamics.chain.tip
+    R = np.eye(3) if tip is None else np.array(tip.R.tolist(), dtype=float)
+    p = np.zeros(3) if tip is None else np.array(tip.p.tolist(), dtype=float).reshape(3)
+    stated = getattr(d.arm, "payload", None)
+    unit = (np.array(stated.inertia, dtype=float) / stated.mass if stated is not None and stated.inertia is not None
+            else sphere_inertia(1.0))
+    return R, p, R @ unit @ R.T
+
+
+def payload_shape_words(d: Derivation) -> str:
+    """What the payload's inertia is, in words (the payload_mass variable's description)."""
+    stated = getattr(d.arm, "payload", None)
+    if stated is not None and stated.inertia is not None:
+        return f"the [payload] table's, {stated.mass:g} kg, scaled with the mass"
+    return "a solid sphere of 5 cm radius"
+
+
+def payload_function(d: Derivation) -> ca.Function:
+    """payload(payload_mass [kg], payload_com (3) [m, tip link's frame]) -> the ten payload parameters
+    (derive.dynamics.payload.NAMES, in F_n): mass, R com + p, mass times the unit shape
+    (:func:`payload_shape`); what derive.sim.plant.payload_values gives for the same payload."""
+    R, p, S = payload_shape(d)
+    m, c = ca.SX.sym("payload_mass"), ca.SX.sym("payload_com", 3)
+    com = ca.mtimes(ca.DM(R), c) + ca.DM(p)
+    ten = ca.vertcat(m, com, *(m * float(S[i, j]) for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))))
+    return ca.Function("payload", [m, c], [ten], ["payload_mass", "payload_com"], ["p"], {"cse": True})
+
+
 def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int) -> tuple[ca.Function, ...]:
     """pulse, amplifier, reference and rk4 (module docstring) as CasADi functions;
     reference and the RK4 step are the simulator's own (derive.sim.kernels)."""
@@ -81,16 +127,18 @@ def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int)
                         ["t", "start", "period", "amplitude", "yd0"], ["r"], {"cse": True})
     clipped = ca.if_else(u_max > 0, ca.fmin(ca.fmax(u, -u_max), u_max), u)
     amplifier = ca.Function("amplifier", [u, u_max], [clipped], ["u", "u_max"], ["u_a"], {"cse": True})
-    step = rk4_function(d, params)
-    x_next, f_next = step(x, f, u, dist, tau_c, visc, r, H / substeps, p)
-    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, H, p], [x_next, f_next],
-                      ["x", "f", "u", "d", "tauc", "bx", "r", "H", "p"], ["x_next", "f_next"], {"cse": True})
+    step = rk4_function(d, params, payload=True)
+    mass, com = sym("payload_mass"), sym("payload_com", 3)
+    x_next, f_next = step(x, f, u, dist, tau_c, visc, r, H / substeps, ca.vertcat(p, payload_function(d)(mass, com)))
+    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, H, p, mass, com], [x_next, f_next],
+                      ["x", "f", "u", "d", "tauc", "bx", "r", "H", "p", "payload_mass", "payload_com"],
+                      ["x_next", "f_next"], {"cse": True})
     return pulse, amplifier, reference_function(n), rk4
 
 
 _DOCS = {"pulse": "pulse train r(t) of section 5.2 added to y_d(0)", "amplifier": "the amplifier's voltage limits",
          "reference": "Gr(s) = 1/(s^2 + 1.8 s + 1): y_d'' from the filter state and r",
-         "rk4": "one classical RK4 substep of plant and reference filter (eq. 12, section 5.2)"}
+         "rk4": "one classical RK4 substep of plant (with its payload) and reference filter (eq. 12, section 5.2)"}
 
 
 def plant_kernels(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int) -> tuple[PlantKernel, ...]:

@@ -15,7 +15,10 @@ Beside :mod:`derive.control` (imports flow model -> dynamics -> identify -> code
   consistent (LMI, maximum a posteriori) estimate (derive identify);
 * :mod:`derive.identify.quality`: the findings (warnings, refusals) on the result;
 * :mod:`derive.identify.armfile`, :mod:`derive.identify.report`: the identified arm file and
-  the report.
+  the report;
+* :mod:`derive.identify.payload`, :mod:`derive.identify.payload_file`: only the payload on the last
+  body, with the rest known (derive identify --payload): its ten parameters, their uncertainty, the
+  ``[payload]`` table.
 """
 
 CUTOFF = 10.0     # Hz: derive identify's default low-pass cut-off (derive.identify.signals)

@@ -89,7 +89,7 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
         doc.add(tomlkit.comment(f"identified by derive identify from {log_name}: each body's ten parameters in "
                                 "its joint's frame (derive.model.override)"))
         doc.add("body_override", aot)
-        _relocate_urdf(doc, source, out)
+        relocate_urdf(doc, source, out)
     else:
         z = idn.cons.z
         for i in range(n):
@@ -103,7 +103,7 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
             f"{source.name}\n" + tomlkit.dumps(doc))
     data = tomllib.loads(text)
     if arm.spatial is not None and "urdf" in data.get("arm", {}):     # checked before out's folder exists
-        data["arm"]["urdf"] = str(_urdf_target(source, source_text))
+        data["arm"]["urdf"] = str(urdf_target(source, source_text))
     try:
         arm_from_dict(data, str(out), out.parent)
     except (SpecError, tomllib.TOMLDecodeError) as exc:
@@ -111,13 +111,13 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
     return text
 
 
-def _urdf_target(source: Path, source_text: str) -> Path:
+def urdf_target(source: Path, source_text: str) -> Path:
     """The absolute path of the original arm file's URDF."""
     path = Path(str(tomllib.loads(source_text)["arm"]["urdf"]))
     return Path(os.path.abspath(path if path.is_absolute() else source.parent / path))
 
 
-def _relocate_urdf(doc, source: Path, out: Path) -> None:
+def relocate_urdf(doc, source: Path, out: Path) -> None:
     """A relative ``urdf`` path made relative to the new file's folder."""
     table = doc.get("arm")
     if table is None or "urdf" not in table or os.path.isabs(str(table["urdf"])):

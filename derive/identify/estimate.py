@@ -24,7 +24,7 @@ from derive.identify.excite import condition
 class LeastSquares:
     """The weighted least-squares estimate: pi (p), its standard deviations, the joints'
     noise sigma_j [N m], cond of the stacked regressor, rows used, the R factor and
-    Q^T y of the weighted regression (for the consistent estimate)."""
+    Q^T y of the weighted regression (for the consistent estimate), the residual's s^2."""
 
     pi: np.ndarray
     std: np.ndarray
@@ -33,6 +33,13 @@ class LeastSquares:
     rows: int
     R: np.ndarray
     qty: np.ndarray
+    s2: float = 1.0
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """p x p: s^2 (W_w^T W_w)^-1 (its diagonal the variances std^2)."""
+        Rinv = np.linalg.inv(self.R)
+        return self.s2 * Rinv @ Rinv.T
 
     @property
     def relative_std(self) -> np.ndarray:
@@ -60,4 +67,4 @@ def least_squares(W: np.ndarray, y: np.ndarray, joint: np.ndarray, n: int, names
     s2 = float(res @ res) / max(rows - p, 1)
     Rinv = np.linalg.inv(R)
     std = np.sqrt(s2 * (Rinv ** 2).sum(axis=1))
-    return LeastSquares(pi=pi, std=std, sigma=sigma, cond=cond, rows=rows, R=R, qty=qty)
+    return LeastSquares(pi=pi, std=std, sigma=sigma, cond=cond, rows=rows, R=R, qty=qty, s2=s2)

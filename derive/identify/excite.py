@@ -175,10 +175,13 @@ def stacked(reg: Regressor, q, dq, ddq) -> np.ndarray:
 
 
 def optimise(reg: Regressor, limits: tuple[JointLimits, ...], duration: float,
-             harmonics: int = HARMONICS, seed: int = 1, iterations: int = 100, rate: float = 1000.0) -> Excitation:
-    """The excitation of ``duration`` seconds (module docstring). DataError for a duration or
-    rate that is not positive, or when the best trajectory still leaves base parameters
-    unexcited (the combinations named)."""
+             harmonics: int = HARMONICS, seed: int = 1, iterations: int = 100, rate: float = 1000.0,
+             held: dict[int, float] | None = None) -> Excitation:
+    """The excitation of ``duration`` seconds (module docstring). ``held``: {joint (0-based):
+    position} of joints that stay still (derive excite --payload moves the wrist only); ``reg``
+    may be any regressor with ``n``, ``p``, ``names`` and ``evaluate`` (the payload's,
+    derive.identify.payload). DataError for a duration or rate that is not positive, or when
+    the best trajectory still leaves base parameters unexcited (the combinations named)."""
     if not (math.isfinite(duration) and duration > 0):
         raise DataError(f"excitation: --duration {duration:g} s: expected a finite number > 0")
     if not (math.isfinite(rate) and rate > 0 and duration * rate >= 2):
@@ -187,11 +190,11 @@ def optimise(reg: Regressor, limits: tuple[JointLimits, ...], duration: float,
         raise DataError(f"excitation: --harmonics {harmonics}: expected at least 2 (one harmonic cannot start "
                         "and end at rest)")
     with threadpool_limits(1, "blas"):        # thousands of small LAPACK calls (pyproject.toml)
-        return _optimise(reg, limits, duration, harmonics, seed, iterations, rate)
+        return _optimise(reg, limits, duration, harmonics, seed, iterations, rate, held or {})
 
 
 def _optimise(reg: Regressor, limits: tuple[JointLimits, ...], duration: float, harmonics: int, seed: int,
-              iterations: int, rate: float) -> Excitation:
+              iterations: int, rate: float, held: dict[int, float]) -> Excitation:
     n, L = reg.n, harmonics
     repeats = max(1, math.ceil(duration / MAX_PERIOD - 1e-9))
     period = duration / repeats
@@ -202,7 +205,18 @@ def _optimise(reg: Regressor, limits: tuple[JointLimits, ...], duration: float, 
     z0 = np.zeros((n, 2 * L - 1))
     z0[:, 0] = [(x.lower + x.upper) / 2 for x in limits]
     z0[:, 1:] = rng.normal(size=(n, 2 * L - 2))
+    for j, position in held.items():
+        z0[j] = 0.0
+        z0[j, 0] = position
     z0 = _feasible(z0.ravel(), n, L, w, limits)
+    free = np.ones((n, 2 * L - 1), bool)
+    free[list(held)] = False
+    free = free.ravel()
+
+    def full(zf: np.ndarray) -> np.ndarray:
+        z = z0.copy()
+        z[free] = zf
+        return z
 
     def states(zs: np.ndarray):
         q, dq, ddq = [], [], []
@@ -211,22 +225,23 @@ def _optimise(reg: Regressor, limits: tuple[JointLimits, ...], duration: float, 
             q.append(x[0]), dq.append(x[1]), ddq.append(x[2])
         return np.vstack(q), np.vstack(dq), np.vstack(ddq)
 
-    def objective(z: np.ndarray) -> tuple[float, np.ndarray]:
-        h = 1e-7 * np.maximum(1.0, np.abs(z))
-        zs = np.vstack([z, z + np.diag(h)])
+    def objective(zf: np.ndarray) -> tuple[float, np.ndarray]:
+        z = full(zf)
+        h = 1e-7 * np.maximum(1.0, np.abs(zf))
+        zs = np.vstack([z, z + np.diag(h) @ np.eye(len(z))[free]])
         Ws = stacked(reg, *states(zs)).reshape(len(zs), samples * n, reg.p)
         U, s, Vt = np.linalg.svd(Ws[0], full_matrices=False)
         if s[-1] <= 0:
-            return 1e3, np.zeros_like(z)
+            return 1e3, np.zeros_like(zf)
         d = (Ws[1:] - Ws[0]) / h[:, None, None]                         # dW/dz_k
         ds_max = np.einsum("i,kij,j->k", U[:, 0], d, Vt[0])
         ds_min = np.einsum("i,kij,j->k", U[:, -1], d, Vt[-1])
         return float(np.log(s[0] / s[-1])), ds_max / s[0] - ds_min / s[-1]
 
-    result = minimize(objective, z0, jac=True, method="SLSQP",
-                      constraints=[{"type": "ineq", "fun": lambda z: _bounds(z, n, L, w, limits)}],
+    result = minimize(objective, z0[free], jac=True, method="SLSQP",
+                      constraints=[{"type": "ineq", "fun": lambda zf: _bounds(full(zf), n, L, w, limits)}],
                       options={"maxiter": iterations, "ftol": 1e-6})
-    z = _feasible(result.x if np.all(np.isfinite(result.x)) else z0, n, L, w, limits)
+    z = _feasible(full(result.x) if np.all(np.isfinite(result.x)) else z0, n, L, w, limits)
     q0, a, b = _coefficients(z, n, L)
     ex = Excitation(period, repeats, q0, a, b, limits, math.inf, rate, seed)
     W = stacked(reg, *ex.sample(ex.times()))

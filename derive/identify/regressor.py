@@ -106,7 +106,7 @@ class Regressor:
     @cached_property
     def function(self) -> ca.Function:
         """CasADi Function x = (theta, dtheta, ddtheta) (3n) -> Y row-major (n p)."""
-        return _function(self.sym, [self.Y[i, j] for i in range(self.n) for j in range(self.p)], "regressor")
+        return sx_function(self.sym, [self.Y[i, j] for i in range(self.n) for j in range(self.p)], "regressor")
 
     @cached_property
     def batch(self) -> Batch:
@@ -119,7 +119,7 @@ class Regressor:
         return self.batch(x)[0].T.reshape(-1, self.n, self.p)
 
 
-def _function(sym: JointSymbols, exprs: list, name: str) -> ca.Function:
+def sx_function(sym: JointSymbols, exprs: list, name: str) -> ca.Function:
     x = ca.SX.sym("x", 3 * len(sym.theta))
     env = {s: x[i] for i, s in enumerate(sym.theta + sym.dtheta + sym.ddtheta)}
     memo = Memo()
@@ -233,7 +233,7 @@ def _base_columns(sym: JointSymbols, chain: Chain, columns: list, seed: int):
     """(kept column indices, {kept: ((dependent, coefficient), ...)}, vanishing indices):
     columns in order, each kept unless it vanishes or lies in the span of the kept ones."""
     n = chain.n
-    f = Batch(_function(sym, [e for col in columns for e in col], "columns"))
+    f = Batch(sx_function(sym, [e for col in columns for e in col], "columns"))
     rng = np.random.default_rng(seed)
     count = max(12, 3 * len(columns) // n + 4)
 

@@ -201,7 +201,7 @@ def mjcf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     moving = _chain_joints(r, tree, path, locked)
     if moving is None:
         return None
-    return _build(r, tree, base, set(path), moving, locked, doc.notes, gravity, direction)
+    return _build(r, tree, base, set(path), moving, locked, doc.notes, gravity, direction, tip)
 
 
 def _chain_joints(r: Reader, tree: _Tree, path: list[int], locked: dict) -> dict[int, int] | None:
@@ -240,7 +240,7 @@ def _chain_joints(r: Reader, tree: _Tree, path: list[int], locked: dict) -> dict
 
 
 def _build(r: Reader, tree: _Tree, base: int, on_path: set[int], moving: dict[int, int], locked: dict,
-           notes: list[str], gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
+           notes: list[str], gravity: Parameter, direction: sp.Matrix, tip: int = -1) -> UrdfChain | None:
     m = tree.m
     joints: list[Joint] = []
     bodies: list[Body] = []
@@ -248,8 +248,11 @@ def _build(r: Reader, tree: _Tree, base: int, on_path: set[int], moving: dict[in
     damping, friction, armature = [], [], []
     merged, held_text, held, efforts, log = [], [], {}, [], []
     stack = [(base, -1, Transform.identity())]    # (body, owning chain joint or -1, F_owner <- body frame)
+    tip_frame = None   # the tip body's frame in F_n (Chain.tip: where a payload's centre of mass is given)
     while stack:
         b, owner, T = stack.pop()
+        if b == tip:
+            tip_frame = T
         if owner >= 0:
             bodies[owner] = merge(bodies[owner], move(tree.body(b, log), T))
             members[owner].append(tree.names[b])
@@ -302,7 +305,8 @@ def _build(r: Reader, tree: _Tree, base: int, on_path: set[int], moving: dict[in
     params, symbolic = body_parameters(bodies, members, joints, "mjcf body")
     vector = sp.ImmutableMatrix((gravity.symbol * sp.Matrix(direction)).applyfunc(sp.expand))
     chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes),
-                  held=tuple((name, float(v)) for name, v in sorted(held.items())))
+                  held=tuple((name, float(v)) for name, v in sorted(held.items())),
+                  tip=None if tip_frame is None or tip_frame == Transform.identity() else tip_frame)
     return UrdfChain(chain, tuple(damping), tuple(_field("joint", j.name, "damping") for j in joints),
                      tuple(friction), tuple(_warnings(tree, moving)), armature=tuple(armature))
 

@@ -129,7 +129,8 @@ def parse_payload(r: Reader, value: Any, field: str = "payload") -> PayloadRange
         radius = None
     inertia = _inertia(r, d["inertia"], f"{field}.inertia") if "inertia" in d else None
     if com is not None and radius is not None and (reach := math.sqrt(sum(x * x for x in com)) + radius) > MAX_REACH:
-        r.add(f"{field}.com_radius" if radius > 0 else f"{field}.com",
+        alone = math.sqrt(sum(x * x for x in com)) > MAX_REACH
+        r.add(f"{field}.com" if alone or radius == 0 else f"{field}.com_radius",
               f"a centre of mass within {MAX_REACH:g} m of the tip link's origin (|com| + com_radius <= {MAX_REACH:g} m)",
               f"|com| + com_radius = {reach:g} m")
     if inertia is not None and mass == 0:

@@ -17,6 +17,12 @@ start               [0, 5, 10, ...]        when each link's pulse train starts [
 coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
 viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
 payload_scale       1.2                    mass factor of the last link's point masses
+payload_mass        0.0                    a rigid payload on the tip [kg], finite >= 0: the plant's
+                                           J + J_p, G + G_p (eq. 12), never the controller's model
+payload_com         [payload] com, or      the payload's centre of mass [m] in the tip link's
+                    [0, 0, 0]              frame, |payload_com| <= 2 m; its inertia about it: the
+                                           [payload] table's shape at payload_mass, else a solid
+                                           sphere of 5 cm radius (derive.sim.plant.payload_values)
 disturbance         [0.3, 0.1, ...]        unknown constant input disturbance d [V; N m in torque mode] (eq. 12)
 velocity_noise      [0, ...]               tachometer noise std [rad/s]
 position_noise      [0, ...]               potentiometer noise std [rad]
@@ -65,6 +71,8 @@ class SimSettings:
     coulomb_friction: tuple[float, ...] = ()
     viscous_friction: tuple[float, ...] = ()
     payload_scale: float = 1.2
+    payload_mass: float = 0.0        # kg: a rigid payload on the tip link (derive.sim.plant)
+    payload_com: tuple[float, ...] = ()   # m, tip link's frame (3); () = the [payload] table's com, else 0
     disturbance: tuple[float, ...] = ()
     velocity_noise: tuple[float, ...] = ()
     position_noise: tuple[float, ...] = ()
@@ -81,6 +89,7 @@ class SimSettings:
 
 
 REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
+MAX_PAYLOAD_REACH = 2.0   # m: |payload_com| at most this (a payload 2 m off the flange is a typing error)
 
 
 def pulse_amplitudes(s: SimSettings, n: int) -> tuple[float, ...]:
@@ -101,7 +110,8 @@ def default_settings(n: int) -> SimSettings:
 
 
 _SCALARS = {"duration": (0.0, True), "sample_time": (0.0, True), "pulse_period": (0.0, True),
-            "amplitude_deg": (None, False), "payload_scale": (0.0, False), "tacho_filter_hz": (0.0, False)}
+            "amplitude_deg": (None, False), "payload_scale": (0.0, False), "tacho_filter_hz": (0.0, False),
+            "payload_mass": (0.0, False)}
 _VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "disturbance": None, "amplitude": None,
             "velocity_noise": 0.0, "position_noise": 0.0, "initial_theta": None, "link_mass_scale": 0.0,
             "torque_constant_scale": 0.0, "voltage_constant_scale": 0.0, "resistance_scale": 0.0}
@@ -112,6 +122,22 @@ def _finite(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+def _payload_com(v: Any, problems: list[Problem]) -> tuple[float, float, float] | None:
+    """``payload_com``: 3 finite numbers [m] within MAX_PAYLOAD_REACH of the tip frame's origin."""
+    field = "simulation.payload_com"
+    if not (isinstance(v, list) and len(v) == 3 and all(_finite(x) for x in v)):
+        problems.append(Problem(field, "an array of 3 finite numbers [m]: the payload's centre of mass in the tip "
+                                "link's frame", repr(v)[:60]))
+        return None
+    reach = math.sqrt(sum(float(x) ** 2 for x in v))
+    if reach > MAX_PAYLOAD_REACH:
+        problems.append(Problem(field, f"a centre of mass within {MAX_PAYLOAD_REACH:g} m of the tip link's origin "
+                                f"(|payload_com| <= {MAX_PAYLOAD_REACH:g} m)", f"{repr(v)[:60]} (|payload_com| = "
+                                f"{reach:g} m)"))
+        return None
+    return tuple(float(x) for x in v)
+
+
 def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
     """Settings from a ``[simulation]`` table, and every problem found in it."""
     base = default_settings(n)
@@ -120,7 +146,8 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
         return base, problems
     if not isinstance(table, dict):
         return base, [Problem("simulation", "a table", repr(table)[:60])]
-    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model", "mujoco_contacts"}
+    allowed = set(_SCALARS) | set(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model", "mujoco_contacts",
+                                               "payload_com"}
     values: dict[str, Any] = {}
     for key in sorted(set(table) - allowed):
         problems.append(Problem(f"simulation.{key}", f"no such key (allowed: {', '.join(sorted(allowed))})",
@@ -176,6 +203,10 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                     "to it)", repr(v)[:60]))
         else:
             values["reference_start"] = v
+    if "payload_com" in table:
+        com = _payload_com(table["payload_com"], problems)
+        if com is not None:
+            values["payload_com"] = com
     if "amplitude" in table and "amplitude_deg" in table:
         problems.append(Problem("simulation.amplitude", "either amplitude (per joint, rad or m) or amplitude_deg "
                                 "(every joint, deg), not both", "both"))

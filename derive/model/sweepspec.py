@@ -25,6 +25,9 @@ by ``derive simulate`` with that ``[simulation]`` section):
 name                   drawn value                                            per
 ====================== ====================================================== ==========
 payload_scale          mass factor of the last link's point masses            arm
+payload_mass           a rigid payload on the tip [kg]                        arm
+payload_com            its centre of mass [m], tip link's frame; low and high component
+                       keep it within 2 m: sqrt(3) max(|low|, |high|) <= 2
 link_mass              factor on each link's mass (and inertia)               link
 coulomb_friction       factor on simulation.coulomb_friction                  joint
 viscous_friction       factor on simulation.viscous_friction                  joint
@@ -39,6 +42,9 @@ position_noise         potentiometer noise standard deviation [rad]           jo
 Distributions: ``uniform`` (low, high), ``normal`` (mean, sd >= 0), ``lognormal``
 (median > 0, sigma >= 0: median exp(sigma Z)); normal and lognormal take optional
 bounds ``low``/``high`` (draws outside are drawn again: a truncated distribution).
+"per": ``arm`` one draw; ``joint`` one independent draw per joint; ``component`` one per
+component x, y, z (``payload_com = { distribution = "uniform", low = -0.05, high = 0.05 }``
+draws each of the three independently from it).
 """
 from __future__ import annotations
 
@@ -49,9 +55,12 @@ from typing import Any
 from derive.errors import Problem
 
 METRICS = ("rms_error", "max_error", "steady_state_error", "control_effort", "saturated_time")
-# parameter -> (simulation key it sets, "arm" (one value) or "joint" (one per joint), factor or value)
+# parameter -> (simulation key it sets, "arm" (one value), "joint" (one per joint) or "component" (x, y, z),
+# factor or value)
 PARAMETERS: dict[str, tuple[str, str, bool]] = {
     "payload_scale": ("payload_scale", "arm", False),
+    "payload_mass": ("payload_mass", "arm", False),
+    "payload_com": ("payload_com", "component", False),
     "link_mass": ("link_mass_scale", "joint", False),
     "coulomb_friction": ("coulomb_friction", "joint", True),
     "viscous_friction": ("viscous_friction", "joint", True),
@@ -64,7 +73,7 @@ PARAMETERS: dict[str, tuple[str, str, bool]] = {
 }
 # parameters whose drawn values must be > 0 (factors of physical constants) or >= 0 (noise, friction)
 _POSITIVE = {"payload_scale", "link_mass", "torque_constant", "resistance"}
-_NONNEGATIVE = {"coulomb_friction", "viscous_friction", "voltage_constant", "velocity_noise", "position_noise"}
+_NONNEGATIVE = {"payload_mass", "coulomb_friction", "viscous_friction", "voltage_constant", "velocity_noise", "position_noise"}
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "lognormal": ("median", "sigma")}
 
 
@@ -156,8 +165,30 @@ def _distribution(name: str, v: Any, problems: list[Problem]) -> Distribution | 
                                     f"{'zero or negative' if positive else 'negative'})",
                                     "nothing" if low is None else repr(low)))
             ok = False
+    if name == "payload_com" and ok:
+        ok = _within_reach(field, kind, low, high, problems)
     return Distribution(kind, a, b, None if kind == "uniform" else low, None if kind == "uniform" else high) \
         if ok else None
+
+
+def _within_reach(field: str, kind: str, low: float | None, high: float | None, problems: list[Problem]) -> bool:
+    """payload_com's bounds keep every drawn centre of mass within MAX_PAYLOAD_REACH (the check
+    of simulation.payload_com): sqrt(3) max(|low|, |high|) <= 2 m."""
+    from derive.model.simspec import MAX_PAYLOAD_REACH
+
+    if low is None or high is None:
+        problems.append(Problem(f"{field}.{'low' if low is None else 'high'}", "bounds low and high on payload_com "
+                                f"(each component; every drawn centre of mass within {MAX_PAYLOAD_REACH:g} m of the tip)",
+                                "nothing"))
+        return False
+    reach = math.sqrt(3) * max(abs(low), abs(high))
+    if reach > MAX_PAYLOAD_REACH:
+        problems.append(Problem(f"{field}.{'low' if abs(low) >= abs(high) else 'high'}", f"bounds within "
+                                f"{MAX_PAYLOAD_REACH / math.sqrt(3):.4g} m (sqrt(3) max(|low|, |high|) <= "
+                                f"{MAX_PAYLOAD_REACH:g} m: every drawn centre of mass within {MAX_PAYLOAD_REACH:g} m "
+                                f"of the tip, as simulation.payload_com)", f"low = {low:g}, high = {high:g} ({kind})"))
+        return False
+    return True
 
 
 def parse_sweep(table: Any, n: int) -> tuple[SweepSpec | None, list[Problem]]:

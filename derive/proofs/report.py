@@ -108,13 +108,17 @@ def _floats(values) -> list[float] | jsonio.Undefined:
 
 def render_json(d: Derivation | None, results: Sequence[Result], seconds: float, code: int) -> str:
     """{"arm", "exit_code", "seconds", "obligations": [{"id", "paper_ref", "kind", "status", "detail",
-    "corrected", "counterexample", "evidence"}]}."""
+    "corrected", "counterexample", "evidence"}], "payload" (with a [payload] range: derive.control.payload.text.record)}."""
     doc = {"arm": d.arm.name if d else None, "n": d.n if d else None, "exit_code": code, "seconds": round(seconds, 3),
            "obligations": [{"id": r.obligation.id, "paper_ref": r.obligation.paper_ref,
                             "kind": r.obligation.kind.value, "status": r.outcome.status.value,
                             "statement": r.obligation.statement, "detail": r.outcome.detail,
                             "corrected": r.outcome.corrected, "counterexample": _cex_json(r.outcome.counterexample),
                             "evidence": r.outcome.evidence} for r in results]}
+    if d is not None and d.arm.payload is not None:
+        from derive.control.payload.text import record
+
+        doc["payload"] = record(d)   # the payload-range obligation's numbers (derive.control.payload)
     return jsonio.dumps(doc, sort_keys=False)
 
 

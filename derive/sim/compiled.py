@@ -56,11 +56,14 @@ class LoopBuild:
     Binv: tuple[float, ...]
     observer: str = "explicit"       # the controller's observer step (derive generate --observer)
     plants: tuple[str, ...] = ("derive",)   # the loops it holds: derive's plant, MuJoCo's (derive.sim.mujoco.loop)
+    payload: bool = False   # derive's plant carries J_p, G_p: its parameter vector ends with the payload's ten
 
 
-def loop_sources(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",)) -> dict[str, str]:
+def loop_sources(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",),
+                 payload: bool = False) -> dict[str, str]:
     """The controller's C (double, runtime parameters, the observer step ``observer``) and the loop driver
-    of each of ``plants`` (derive's: templates/sim/loop.c.jinja; MuJoCo's: templates/sim/mujoco_loop.c.jinja)."""
+    of each of ``plants`` (derive's: templates/sim/loop.c.jinja; MuJoCo's: templates/sim/mujoco_loop.c.jinja);
+    ``payload``: derive's plant with a payload's J_p and G_p (derive.sim.kernels.accel_spec)."""
     from derive.codegen.kernels import ParamsMode
     from derive.codegen.render import render
     from derive.codegen.views import arm_view
@@ -77,7 +80,7 @@ def loop_sources(d, observer: str = "explicit", plants: tuple[str, ...] = ("deri
         out[f"{a}_mj.c"] = render("sim/mujoco_loop.c.jinja", v=v, kernels=sim_kernels(d, external_plant_functions(d.n)),
                                   forms=forms)
     if "derive" in plants:
-        out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d), forms=forms)
+        out[f"{a}_sim.c"] = render("sim/loop.c.jinja", v=v, kernels=sim_kernels(d, payload=payload), forms=forms)
     return out
 
 
@@ -105,11 +108,13 @@ def _compile(folder: Path, sources: dict[str, str], arm: str, plants: tuple[str,
     return so
 
 
-def build(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",)) -> LoopBuild:
+def build(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",), payload: bool = False) -> LoopBuild:
     """Render and compile the loop of derivation ``d`` with the controller's observer step
     ``observer`` (derive.codegen.kernels.OBSERVER_STEPS; about a second for two joints) around
-    each of ``plants`` (derive's, MuJoCo's: one library, the controller compiled once)."""
-    sources = loop_sources(d, observer, plants)
+    each of ``plants`` (derive's, MuJoCo's: one library, the controller compiled once); ``payload``:
+    derive's plant carries a payload's J_p and G_p (its runs pass the payload's ten parameters)."""
+    payload = payload and "derive" in plants
+    sources = loop_sources(d, observer, plants, payload)
     key = hashlib.sha256("\0".join(f"{k}\0{v}" for k, v in sorted(sources.items())).encode()).hexdigest()
     with tempfile.TemporaryDirectory(prefix="derive-loop-") as tmp:
         library = _compile(Path(tmp), sources, d.arm.name, plants).read_bytes()
@@ -118,7 +123,7 @@ def build(d, observer: str = "explicit", plants: tuple[str, ...] = ("derive",)) 
                      forms=tuple(FORMS), ctl_values=tuple(float(v) for _, v in d.values),
                      limits=tuple(float(m.input_limit) if m.input_limit else 0.0 for m in d.arm.motors),
                      W=tuple(map(tuple, W)), Binv=tuple(1.0 / np.array(d.B.tolist(), dtype=float).diagonal()),
-                     observer=observer, plants=tuple(plants))
+                     observer=observer, plants=tuple(plants), payload=payload)
 
 
 _LOADED: dict[str, tuple[tempfile.TemporaryDirectory, ctypes.CDLL]] = {}

@@ -9,7 +9,9 @@ only sequences the kernels and the generated controller's steps.
   J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta' (eq. 12 plus the
   plant's extra Coulomb and viscous friction),
   J and G of the Derivation in its parameter symbols p (the true plant's values
-  at run time), solved numerically (CasADi's linear solve), never J^-1;
+  at run time), solved numerically (CasADi's linear solve), never J^-1; with a
+  payload, J + J_p and G + G_p (derive.dynamics.payload), the payload's ten
+  parameters appended to p;
 * rk4(x, f, u, d, tau_c, b, r, h, p) -> (x', f'): one classical RK4 step of length h
   of the plant x = (theta, theta') and the reference filter
   Gr(s) = 1 / (s^2 + 1.8 s + 1) with states f = (y_d, y_d') driven by r (section 5.2);
@@ -32,7 +34,7 @@ from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, LinearSolve, Port
 from derive.codegen.printing import print_function
 from derive.control.pipeline import Derivation
-from derive.sim.plant import SMOOTH
+from derive.sim.plant import SMOOTH, payload_terms_of
 
 GR_DAMPING = 1.8  # Gr(s) = 1 / (s^2 + 1.8 s + 1), section 5.2
 
@@ -48,32 +50,39 @@ def plant_symbols(d: Derivation) -> tuple[sp.Symbol, ...]:
     return tuple(sym for sym, _ in d.values if sym in used)
 
 
-def accel_spec(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> KernelSpec:
+def accel_spec(d: Derivation, params: tuple[sp.Symbol, ...] | None = None, payload: bool = False) -> KernelSpec:
     """Forward dynamics of the true plant with Coulomb friction, in parameter
-    symbols ``params`` (default: every symbol of ``d.values``, the compiled loop's vector)."""
+    symbols ``params`` (default: every symbol of ``d.values``, the compiled loop's vector);
+    ``payload``: J + J_p and G + G_p of a payload on the last body (eq. 12 with the plant's
+    payload, derive.dynamics.payload), its ten symbols appended to ``params``."""
     s, dyn, n = d.dynamics.sym, d.dynamics, d.n
+    J, G = dyn.J, dyn.G
+    params = tuple(sym for sym, _ in d.values) if params is None else params
+    if payload:
+        terms = payload_terms_of(d)
+        J, G, params = J + terms.J, G + terms.G, params + terms.symbols
     dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
     tau_c = tuple(sp.Symbol(f"tauc{i + 1}", real=True) for i in range(n))
     visc = tuple(sp.Symbol(f"bx{i + 1}", real=True) for i in range(n))
     y = tuple(sp.Symbol(f"ddtheta{i + 1}", real=True) for i in range(n))
     friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) + b * v
                           for c, b, v in zip(tau_c, visc, s.dtheta)])
-    rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - dyn.G - friction
-    params = tuple(sym for sym, _ in d.values) if params is None else params
+    rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - G - friction
     return KernelSpec(
         "accel", (Port("theta", s.theta, "joint angles"), Port("dtheta", s.dtheta, "joint velocities"),
                   Port("u", s.u, "applied voltages"), Port("d", dist, "input disturbance"),
                   Port("tauc", tau_c, "Coulomb friction"), Port("bx", visc, "extra viscous friction"),
                   Port("p", params, "plant")),
         (Port("ddtheta", y, "joint accelerations"),),
-        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'", (LinearSolve(y, dyn.J, rhs),))
+        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'", (LinearSolve(y, J, rhs),))
 
 
-def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None) -> ca.Function:
+def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None, payload: bool = False) -> ca.Function:
     """rk4(x, f, u, d, tauc, bx, r, h, p) -> (x_next, f_next): one classical RK4 step of
-    length h of plant and reference filter, u, d and r held (see the module docstring)."""
+    length h of plant and reference filter, u, d and r held (see the module docstring);
+    ``payload``: p ends with the payload's ten parameters (:func:`accel_spec`)."""
     n = d.n
-    F = to_function(accel_spec(d, params))
+    F = to_function(accel_spec(d, params, payload))
     npar = F.size1_in(6)
     x, f = ca.SX.sym("x", 2 * n), ca.SX.sym("f", 2 * n)
     u, dist, tau_c, visc, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "bx", "r"))
@@ -133,9 +142,10 @@ def measure_function(n: int) -> ca.Function:
                        ["x", "nq", "ndq", "v", "alpha"], ["theta_m", "v_next"], {"cse": True})
 
 
-def sim_functions(d: Derivation) -> tuple[ca.Function, ...]:
-    """rk4, measure and reference as CasADi functions (see the module docstring)."""
-    return rk4_function(d), measure_function(d.n), reference_function(d.n)
+def sim_functions(d: Derivation, payload: bool = False) -> tuple[ca.Function, ...]:
+    """rk4, measure and reference as CasADi functions (see the module docstring); ``payload``:
+    the plant carries J_p and G_p, p the payload's ten parameters at its end."""
+    return rk4_function(d, payload=payload), measure_function(d.n), reference_function(d.n)
 
 
 def external_plant_functions(n: int) -> tuple[ca.Function, ...]:
@@ -155,11 +165,12 @@ class SimKernel:
     operations: int
 
 
-def sim_kernels(d: Derivation, functions: tuple[ca.Function, ...] | None = None) -> tuple[SimKernel, ...]:
-    """The simulator kernels (default: :func:`sim_functions`) printed as double C (static
-    functions of the loop)."""
+def sim_kernels(d: Derivation, functions: tuple[ca.Function, ...] | None = None,
+                payload: bool = False) -> tuple[SimKernel, ...]:
+    """The simulator kernels (default: :func:`sim_functions` with ``payload``) printed as double C
+    (static functions of the loop)."""
     out = []
-    for fn in sim_functions(d) if functions is None else functions:
+    for fn in sim_functions(d, payload) if functions is None else functions:
         printed = print_function(fn, "c", "double")
         args = tuple(f"const double {fn.name_in(i)}[{fn.size1_in(i)}]" for i in range(fn.n_in()))
         args += tuple(f"double {fn.name_out(i)}[{fn.size1_out(i)}]" for i in range(fn.n_out()))

@@ -14,6 +14,11 @@ vector, the Python reference puts them into the SymPy matrices):
   moment and inertia of the body joint i moves); ``torque_constant_scale``,
   ``voltage_constant_scale`` and ``resistance_scale`` the motors' constants.
 
+A payload (``payload_mass`` > 0 at ``payload_com``, :func:`payload_values`) is a rigid body on
+the tip the controller's model does not have: J_true = J + J_p, G_true = G + G_p
+(derive.dynamics.payload), its ten parameters in F_n (``TruePlant.payload``) after the
+parameter vector (the compiled loop built with ``payload=True``, derive.sim.compiled).
+
 Coulomb friction tau_c tanh(theta'/0.01) and the disturbance d (eq. 12) enter the
 forward dynamics J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'.
 """
@@ -26,7 +31,9 @@ import numpy as np
 import sympy as sp
 
 from derive.control.pipeline import Derivation
+from derive.dynamics.payload import NAMES as PAYLOAD_NAMES, PayloadTerms, payload_terms, sphere_inertia
 from derive.dynamics.program import dag_xreplace, lambdify
+from derive.model.payload import body_values
 from derive.model.simspec import SimSettings
 
 SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
@@ -45,6 +52,69 @@ class TruePlant:
     disturbance: tuple[float, ...]
     u_max: tuple[float, ...]
     changed: dict = field(default_factory=dict, compare=False)  # parameter name -> (arm value, plant value)
+    payload: tuple[float, ...] = (0.0,) * 10   # the payload's ten parameters in F_n (derive.dynamics.payload.NAMES)
+
+    @property
+    def has_payload(self) -> bool:
+        """A payload of mass > 0 rides on the tip."""
+        return self.payload[0] > 0
+
+    def vector(self, payload: bool) -> tuple[float, ...]:
+        """The compiled plant's parameter vector: ``values``, and with ``payload`` the ten after them."""
+        return self.values + (self.payload if payload else ())
+
+
+_TERMS: dict[int, tuple[Derivation, PayloadTerms]] = {}
+
+
+def payload_terms_of(d: Derivation) -> PayloadTerms:
+    """derive.dynamics.payload.payload_terms of ``d``'s dynamics, derived once per Derivation in a
+    process (J_p n x n and G_p n x 1 in the joint symbols and the ten payload symbols; 0.06 s for
+    the Panda)."""
+    hit = _TERMS.get(id(d))
+    if hit is None or hit[0] is not d:
+        if len(_TERMS) > 8:
+            _TERMS.clear()
+        hit = _TERMS[id(d)] = (d, payload_terms(d.dynamics))
+    return hit[1]
+
+
+def payload_com(d: Derivation, s: SimSettings) -> tuple[float, float, float]:
+    """The payload's centre of mass [m] in the tip link's frame: ``[simulation] payload_com``, else
+    the ``[payload]`` table's com, else the origin."""
+    if s.payload_com:
+        return tuple(s.payload_com)
+    stated = getattr(d.arm, "payload", None)
+    return tuple(stated.com) if stated is not None else (0.0, 0.0, 0.0)
+
+
+def payload_note(d: Derivation, s: SimSettings) -> str:
+    """The payload of settings ``s`` in words (the metrics files' plant descriptions)."""
+    stated = getattr(d.arm, "payload", None)
+    shape = ("the [payload] table's inertia at that mass" if stated is not None and stated.inertia is not None
+             else "a solid sphere of 5 cm radius")
+    com = ", ".join(f"{x:g}" for x in payload_com(d, s))
+    return f"a rigid payload of {s.payload_mass:g} kg at [{com}] m in the tip link's frame, {shape}"
+
+
+def payload_values(d: Derivation, s: SimSettings) -> tuple[float, ...]:
+    """The ten payload parameters (derive.dynamics.payload.NAMES; kg, m, kg m^2, in F_n) of
+    ``[simulation] payload_mass`` at :func:`payload_com`, its inertia about its centre of mass the
+    ``[payload]`` table's shape at that mass (derive.model.payload.PayloadRange.inertia_at) when the
+    table states one, else the 5 cm solid sphere; all zero without a payload."""
+    if s.payload_mass <= 0:
+        return (0.0,) * 10
+    return body_values(d.dynamics.chain, s.payload_mass, payload_com(d, s), payload_inertia(d, s))
+
+
+def payload_inertia(d: Derivation, s: SimSettings) -> np.ndarray:
+    """The payload's inertia about its centre of mass (3 x 3, kg m^2, the tip link's frame) at
+    ``[simulation] payload_mass``: the ``[payload]`` table's shape when it states an inertia, else
+    the solid sphere of 5 cm radius."""
+    stated = getattr(d.arm, "payload", None)
+    if stated is not None and stated.inertia is not None:
+        return stated.inertia_at(s.payload_mass)
+    return sphere_inertia(s.payload_mass)
 
 
 def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
@@ -84,10 +154,13 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
         if values[sym] * f != values[sym]:
             changed[str(sym)] = (values[sym], values[sym] * f)
             values[sym] *= f
+    payload = payload_values(d, s)
+    if payload[0] > 0:   # the arm file's arm carries none
+        changed.update({name: (0.0, v) for name, v in zip(PAYLOAD_NAMES, payload)})
     u_max = tuple(float(m.input_limit) if m.input_limit else math.inf for m in d.arm.motors)
     return TruePlant(values=tuple(values[sym] for sym, _ in d.values), coulomb=tuple(s.coulomb_friction),
                      viscous=tuple(s.viscous_friction), disturbance=tuple(s.disturbance), u_max=u_max,
-                     changed=changed)
+                     changed=changed, payload=payload)
 
 
 class Plant:
@@ -104,7 +177,12 @@ class Plant:
         self.n = n = d.n
         # the true plant's values put in (as 17-digit floats): the constants fold once, here
         rep = {sym: sp.Float(v, 17) for sym, v in zip(syms, plant.values)}
-        exprs = dag_xreplace(list(dyn.J) + list(dyn.G), rep, keep_sums=False)  # as xreplace builds them
+        J, G = dyn.J, dyn.G
+        if plant.has_payload:   # J + J_p, G + G_p at the payload's ten values (eq. 12)
+            terms = payload_terms_of(d)
+            J, G = J + terms.J, G + terms.G
+            rep.update({sym: sp.Float(v, 17) for sym, v in zip(terms.symbols, plant.payload)})
+        exprs = dag_xreplace(list(J) + list(G), rep, keep_sums=False)  # as xreplace builds them
         self._jg = lambdify(list(dyn.sym.theta + dyn.sym.dtheta), exprs)  # each shared subexpression once
         self._p: list[float] = []
         self.B = np.array([float(b.xreplace(rep)) for b in dyn.B.diagonal()], dtype=float)
@@ -114,9 +192,9 @@ class Plant:
         self.u_max = np.array(plant.u_max)
         self._n2 = n * n
 
-    def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
-        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
+    def matrices(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The true plant's J (rows x n x n) and G (rows x n) at (q, dq), each rows x n: the arm's
+        (eq. 12) at the plant's values, with the payload's J_p and G_p when it carries one."""
         n, rows = self.n, q.shape[0]
         vals = self._jg(*q.T, *dq.T, *self._p)
         J = np.empty((rows, n, n))
@@ -125,6 +203,12 @@ class Plant:
         G = np.empty((rows, n))
         for i in range(n):
             G[:, i] = vals[self._n2 + i]
+        return J, G
+
+    def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
+        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
+        J, G = self.matrices(q, dq)
         rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH) - self.viscous * dq
         return np.linalg.solve(J, rhs[..., None])[..., 0]
 

@@ -87,11 +87,16 @@ class DerivedPlant:
     def describe(self, d, s) -> dict:
         from derive.sim.plant import true_plant
 
-        changed = true_plant(d, s).changed
-        return {"name": "derive", "model": "the arm's own derivation: J theta'' + G = B (u + d) (eq. 11-12) at the "
-                "[simulation] parameter values, plus its Coulomb and viscous friction",
-                "integrator": "RK4", "timestep": s.sample_time / s.substeps, "steps_per_sample": s.substeps,
-                "changed": {k: {"arm": a, "plant": b} for k, (a, b) in sorted(changed.items())}}
+        from derive.sim.plant import payload_note
+
+        plant = true_plant(d, s)
+        out = {"name": "derive", "model": "the arm's own derivation: J theta'' + G = B (u + d) (eq. 11-12) at the "
+               "[simulation] parameter values, plus its Coulomb and viscous friction",
+               "integrator": "RK4", "timestep": s.sample_time / s.substeps, "steps_per_sample": s.substeps,
+               "changed": {k: {"arm": a, "plant": b} for k, (a, b) in sorted(plant.changed.items())}}
+        if plant.has_payload:
+            out["payload"] = payload_note(d, s) + ": J + J_p, G + G_p (eq. 12), in the plant only"
+        return out
 
     def coulomb(self, d, s) -> np.ndarray:
         """[simulation] coulomb_friction, as derive's plant applies it (derive.sim.plant)."""
@@ -100,13 +105,14 @@ class DerivedPlant:
         return np.array(true_plant(d, s).coulomb, dtype=float)
 
 
-def build(d, observer: str = "explicit", sources=(DerivedPlant(),)):
+def build(d, observer: str = "explicit", sources=(DerivedPlant(),), payload: bool = False):
     """The compiled loop (derive.sim.compiled.LoopBuild) of derivation ``d``'s controller with the
     observer step ``observer`` around each plant of ``sources``: one library, the controller
-    compiled once."""
+    compiled once. ``payload``: derive's plant carries a payload's J_p and G_p (a run or sweep with
+    ``payload_mass`` > 0; without, the loop leaves them out: they cost the Panda's runs 13 %)."""
     from derive.sim.compiled import build as build_loop
 
-    return build_loop(d, observer, tuple(dict.fromkeys(src.name for src in sources)))
+    return build_loop(d, observer, tuple(dict.fromkeys(src.name for src in sources)), payload)
 
 
 def select(arm, name: str, friction: str = "file") -> PlantSource:

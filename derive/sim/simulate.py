@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from derive.errors import DeriveError
 from derive.jsonio import Undefined
 from derive.control.pipeline import Derivation
 from derive.control.wrap import wrap_numeric
@@ -283,8 +284,15 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
     run as :func:`run`, with the whole loop in C and Python called once."""
     from derive.sim.compiled import run_loop
 
+    with_payload = getattr(loop, "payload", False)
+    if plant.has_payload and not with_payload:
+        raise DeriveError(f"compiled simulation: expected a loop built with the payload's J_p and G_p for a plant "
+                          f"carrying {plant.payload[0]:g} kg ([simulation] payload_mass), got one built without "
+                          "(derive.sim.plants.build(..., payload=True))")
+    values = plant.vector(with_payload)
+
     def call(form, protected, *rest, f0=None):
-        return run_loop(loop, form, protected, plant.values, plant.coulomb, plant.viscous, plant.disturbance,
+        return run_loop(loop, form, protected, values, plant.coulomb, plant.viscous, plant.disturbance,
                         plant.u_max, *rest, f0=f0)
     return run_compiled_with(d, loop, plant.u_max, s, name, call)
 

@@ -52,13 +52,14 @@ def sample_settings(base: SimSettings, spec: SweepSpec, index: int, n: int) -> t
     drawn: dict = {}
     for name, dist in spec.vary:
         key, per, factor = PARAMETERS[name]
-        values = [draw(rng, dist) for _ in range(1 if per == "arm" else n)]
+        values = [draw(rng, dist) for _ in range({"arm": 1, "component": 3}.get(per, n))]
         drawn[name] = values[0] if per == "arm" else values
         if per == "arm":
             updates[key] = values[0]
+        elif factor:
+            updates[key] = tuple(o * v for o, v in zip(getattr(base, key), values))
         else:
-            old = getattr(base, key)
-            updates[key] = tuple(o * v for o, v in zip(old, values)) if factor else tuple(values)
+            updates[key] = tuple(values)
     return replace(base, **updates), drawn
 
 

@@ -24,7 +24,8 @@ Steps:
    inertia of what derive's plant scales (the body joint i moves for a planar arm, whose
    welded bodies are point masses; every body joint i carries for a URDF or DH arm), and
    ``payload_scale`` the bodies welded below the last joint when derive's arm has point
-   masses on its last link (planar arms; a URDF arm has none, in either plant).
+   masses on its last link (planar arms; a URDF arm has none, in either plant); ``payload_mass``
+   a body welded to the tip body (:mod:`.payload`).
 5. **Joints**: derive's drive as a MuJoCo ``general`` actuator on each joint, input
    ctrl = u + d: voltage, gain Kt/R, bias -Kt Kv/R times the motor speed, gear gr (tau =
    gr Kt (u - gr Kv theta')/R, eq. 11-12: MuJoCo's actuator velocity is gr theta'; its own
@@ -70,6 +71,7 @@ from derive.model.chain import Actuation, JointType
 from derive.model.mjcf_xml import MINVAL, collected_warnings, compile_error
 from derive.sim.mujoco import require
 from derive.sim.mujoco.edit import fail, fix_unmoved, hold, owners, strip_file_elements, strip_geometry
+from derive.sim.mujoco.payload import weld_payload
 
 FRICTION = ("file", "off")
 
@@ -249,6 +251,7 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
         if factor != 1.0:
             sb.mass, sb.inertia = sb.mass * factor, sb.inertia * factor
             scaled[sb.name or f"body {b}"] = factor
+    welded = weld_payload(spec, ref, src, d, s, ids[-1])   # [simulation] payload_mass (derive.sim.mujoco.payload)
     drive = drives(d, values)
     extras = []
     own_mjcf = src.kind == "mjcf" and getattr(src, "own", False)
@@ -321,8 +324,10 @@ def build(src, d, values: tuple[float, ...], s, friction: str = "file") -> Compi
         raise fail(src, f"expected {n} degrees of freedom once the other joints are held, got {model.nv}")
     qadr = np.array([model.joint(j.name).qposadr[0] for j in mapped], dtype=np.int32)
     dadr = np.array([model.joint(j.name).dofadr[0] for j in mapped], dtype=np.int32)
-    return Compiled(model, qadr, dadr, coulomb, _describe(mj, src, d, s, friction, mapped, drive, held, removed,
-                                                          scaled, extras, payload, opt.gravity, coulomb), xml)
+    description = _describe(mj, src, d, s, friction, mapped, drive, held, removed, scaled, extras, payload,
+                            opt.gravity, coulomb)
+    description["notes"] += [welded] if welded else []
+    return Compiled(model, qadr, dadr, coulomb, description, xml)
 
 
 def written_xml(spec, src, coulomb, contacts: bool) -> str:

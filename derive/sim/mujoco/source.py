@@ -56,7 +56,8 @@ class MujocoSource:
     body derive's chain starts from, when the arm file names one), ``locked`` (joint -> value [rad or m]
     held: the arm file's ``locked``, and every other joint derive holds, at its value), ``notes``
     (what stripping removed), ``own`` (the file is the arm's own ``[arm] urdf`` or ``mjcf``: derive's
-    chain was read from it)."""
+    chain was read from it), ``tip`` (the arm file's ``tip_link`` or ``tip_body``: the body a payload is
+    welded to)."""
 
     field: str
     shown: str
@@ -67,6 +68,7 @@ class MujocoSource:
     locked: tuple[tuple[str, float], ...]
     notes: tuple[str, ...]
     own: bool = False
+    tip: str | None = None   # the arm file's tip_link or tip_body (a payload is welded to it, derive.sim.mujoco.payload)
 
 
 def _arm_table(arm) -> dict:
@@ -258,4 +260,10 @@ def load_source(arm) -> MujocoSource:
     return MujocoSource(field=field, shown=shown, kind=kind, xml=tostring(root, encoding="unicode"),
                         folder=str(path.parent.resolve()), base=base if isinstance(base, str) else None,
                         locked=tuple(sorted(held.items())), notes=tuple(notes),
-                        own=field in ("arm.urdf", "arm.mjcf"))
+                        own=field in ("arm.urdf", "arm.mjcf"), tip=_tip_name(table))
+
+
+def _tip_name(table: dict) -> str | None:
+    """The arm file's tip link (URDF) or tip body (MJCF), None when it names neither."""
+    tip = table.get("tip_link", table.get("tip_body"))
+    return tip if isinstance(tip, str) else None

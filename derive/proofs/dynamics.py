@@ -87,7 +87,8 @@ def check_skew(d: "Derivation") -> Outcome:
     decided exactly on the torus of the angles with the rates."""
     R, n = ring(d), d.n
     T = R.T
-    C = R.get("C", lambda: d.numeric(d.dynamics.coriolis))
+    C = T.convert(list(d.numeric(d.dynamics.coriolis)))   # not kept: no other obligation needs C (12 joints: 5.6M terms)
+    T.forget()
     rates = R.rates()
     for i in range(n):
         for j in range(i, n):

@@ -110,6 +110,26 @@ def test_show_states_the_zero_pose_past_the_cap():
     assert "at θ = 0" in out.note and float(out.value[0, 0]) == 1.0
 
 
+def test_an_unproven_stated_box_past_the_one_matrix_bound_says_so(monkeypatch):
+    """Decided by the one-matrix bound (one cell), an unproven stated box says what bound it is beyond,
+    not "not decided in 1 cells" nor "cell budget"."""
+    from types import SimpleNamespace
+
+    from derive.control.certificate import Decision
+    from derive.proofs import certificate as proof
+
+    dec = Decision(Verdict.UNPROVEN, 1, None, ((0.0,) * 11, (2.0,) * 11), 41.0, 0.1)
+    report = cert_report.Report(W=((1.0,),), shape=(2.0,) * 12, stated=True, speed=0.0031, speed_sup=8.2,
+                                speed_decision=dec, rate=0.0, rate_sup=1.0, rate_decision=None,
+                                stated_decision=dec, unbounded=(), seconds=0.1, one_bound=True)
+    monkeypatch.setattr(cert_report, "report", lambda d: report)
+    d = SimpleNamespace(n=12, arm=SimpleNamespace(controller=SimpleNamespace(observer_rate=0.0)))
+    out = proof.check_certificate(d)
+    assert out.status.value == "unproven"
+    assert "one-matrix bound" in out.detail and "cells" not in out.detail.split(";")[0]
+    assert "cell budget" not in out.summary and "0.0031 x the stated box" in out.detail
+
+
 @pytest.mark.slow
 def test_twelve_joint_init_and_show(tmp_path):
     """derive init and show on the 12-joint chain exit 0 (minutes on a loaded machine)."""

@@ -155,6 +155,7 @@ class InertiaModel:
         self.fourier: tuple[np.ndarray, np.ndarray] | None = None   # (C_f: K x n x n, f: K x m)
         self._series = None   # (coefficients, frequencies or powers, polynomial flags, half-widths)
         self._fourth: np.ndarray | None = None
+        self._first: np.ndarray | None = None   # bounds of |dJ/dq_k| (first(): degrees, intervals)
         self.bounded_by = "series"   # how second, third are bounded: "series", "coefficients", "degrees"
         self.scale = np.ones(n)   # D^-1: 1 / sqrt of J's diagonal at the middle of the spans (the certificate's scale)
         if self.unbounded:
@@ -337,17 +338,37 @@ class InertiaModel:
         half = [1.0 if a else max((c.span[1] - c.span[0]) / 2, 1e-300) for a, c in zip(angle, self.deps)]
         self.supremum = supremum_matrix(J, self.deps, self.spans)
         self._degree_args = (self.supremum, self.entry_degrees, angle, half)
+        self._J = J
         self.second, self.third = degree_bounds(*self._degree_args)
 
     def first(self) -> np.ndarray:
-        """Bounds of |dJ/dq_k| valid for every q (m x n x n), from the degrees (only after
-        :meth:`_degree_bounds`)."""
+        """Bounds of |dJ/dq_k| valid for every q within the spans (m x n x n): the smaller of the
+        degrees' (Bernstein, Markov) and interval arithmetic's on J's graph (only after
+        :meth:`_degree_bounds`; snake12: the bound of the norm certificate's J' halved)."""
         from derive.control.interval import markov_factor
 
+        if self._first is not None:
+            return self._first
         S, deg, angle, half = self._degree_args
         f = [deg[..., k] if a else np.vectorize(markov_factor)(deg[..., k], 1) / h
              for k, (a, h) in enumerate(zip(angle, half))]
-        return np.array(f, dtype=float) * S[None] * (1 + 1e-12)
+        bernstein = np.array(f, dtype=float) * S[None] * (1 + 1e-12)
+        self._first = np.minimum(bernstein, self._gradient_bounds())
+        return self._first
+
+    def _gradient_bounds(self) -> np.ndarray:
+        """|dJ_ab/dq_k| over the spans (within the joint limits) by interval arithmetic on J's graph
+        (derive.control.interval.interval_gradients): m x n x n."""
+        from derive.control.interval import interval_gradients
+
+        n, m = self.n, self.m
+        pairs = [(i, j) for i in range(n) for j in range(i, n)]
+        boxes = {c.symbol: span for c, span in zip(self.deps, self.spans)}
+        G = interval_gradients([self._J[i, j] for i, j in pairs], boxes, [c.symbol for c in self.deps])
+        out = np.zeros((m, n, n))
+        for (i, j), g in zip(pairs, np.abs(G).max(axis=-1)):
+            out[:, i, j] = out[:, j, i] = g
+        return out
 
     @property
     def fourth(self) -> np.ndarray | None:

@@ -36,7 +36,7 @@ from enum import Enum
 import numpy as np
 
 from derive.control.inertia import Coordinate, InertiaModel, joint_coordinates
-from derive.control.norm_bound import (MAX_VERTEX_DEPS, norm_lower_bound, norm_rate_bound, norm_speed_bound,
+from derive.control.norm_bound import (ELEMENTS, MAX_VERTEX_DEPS, norm_lower_bound, norm_rate_bound, norm_speed_bound,
                                        sample_count, sign_patterns)
 from derive.control.split import MAX_INNER, SplitModel, split_model
 
@@ -46,6 +46,7 @@ FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding 
 DEFAULT_BUDGET = 20_000   # cells per decision
 MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
+CELL_ELEMENTS = 1 << 22     # numbers of the largest per-batch array of a decision (the Hessian term)
 
 
 class Verdict(str, Enum):
@@ -319,6 +320,11 @@ class ObserverCertificate:
         def mirrored(x: np.ndarray) -> np.ndarray:
             return np.concatenate([x, x[:, ::-1]], axis=1) if paired else x
 
+        # cells per batch: the Hessian's P x V' x m^2 x n^2 numbers within CELL_ELEMENTS (an 8-joint chain's
+        # 512 cells x 64 vertices x 7^2 x 8^2 were 0.8 GB an array, 2.3 GB in check); the cells examined are
+        # the same (each cell's fate is its own), only the budget's test comes at other batch boundaries
+        batch = int(min(batch, max(16, CELL_ELEMENTS // max(1, lead * max(m, 1) ** 2 * n * n))))
+
         while centres.shape[0]:
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
@@ -429,25 +435,35 @@ class ObserverCertificate:
             own = max(own, self.grouped.supremum(W))
         return own
 
+    def _chunks(self, q: np.ndarray, exact: bool):
+        """``q`` in batches whose N at every vertex holds at most ELEMENTS numbers (the estimates are
+        minima over points: the same numbers, batch by batch; an 8-joint chain's 8,192 points x 128
+        vertices x 64 were 0.5 GB an array, 2.3 GB in check)."""
+        V = self.all_signs.shape[0] if exact or self.split is None else self.signs.shape[0]
+        step = max(1, ELEMENTS // max(1, V * self.model.n ** 2))
+        return (q[i:i + step] for i in range(0, q.shape[0], step))
+
     def _speed_supremum(self, W, shape, beta: float, count: int, exact: bool) -> float:
         q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, count) if self.norm else count, exact=exact)
         W = np.asarray(W, dtype=float)
-        A = self.matrices(W, shape, 0.0, beta, q, exact)[:, 0]
-        if np.linalg.eigvalsh(A)[:, 0].min() <= 0:
-            return 0.0
-        if self.model.m == 0:
-            return math.inf
-        Li = np.linalg.inv(np.linalg.cholesky(A))
-        if exact or self.split is None:
-            # K = J'(theta, s) at the vertices s, linear in s: the vertices -s give -K, so half of them
-            # and both ends of the spectrum give every lambda_max
-            half = self.speeds(shape, 1.0, True)[self.all_signs[:, 0] > 0]
-            K = np.einsum("vk,pkij->pvij", half, self.model.dJ(q))
-            lam = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))
-            top = max(lam[..., -1].max(), -lam[..., 0].min())
-        else:
-            K = -(self.matrices(W, shape, 1.0, 0.0, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))
-            top = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))[..., -1].max()
+        top = -math.inf
+        for qc in self._chunks(q, exact):
+            A = self.matrices(W, shape, 0.0, beta, qc, exact)[:, 0]
+            if np.linalg.eigvalsh(A)[:, 0].min() <= 0:
+                return 0.0
+            if self.model.m == 0:
+                return math.inf
+            Li = np.linalg.inv(np.linalg.cholesky(A))
+            if exact or self.split is None:
+                # K = J'(theta, s) at the vertices s, linear in s: the vertices -s give -K, so half of them
+                # and both ends of the spectrum give every lambda_max
+                half = self.speeds(shape, 1.0, True)[self.all_signs[:, 0] > 0]
+                K = np.einsum("vk,pkij->pvij", half, self.model.dJ(qc))
+                lam = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))
+                top = max(top, lam[..., -1].max(), -lam[..., 0].min())
+            else:
+                K = -(self.matrices(W, shape, 1.0, 0.0, qc, exact) - self.matrices(W, shape, 0.0, 0.0, qc, exact))
+                top = max(top, np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))[..., -1].max())
         return math.inf if top <= 0 else float(1.0 / top)
 
     def rate_supremum(self, W, shape, v: float, count: int = 4096, exact: bool = False) -> float:
@@ -465,8 +481,11 @@ class ObserverCertificate:
     def _rate_supremum(self, W, shape, v: float, count: int, exact: bool) -> float:
         q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, count) if self.norm else count, exact=exact)
         W = np.asarray(W, dtype=float)
-        N0 = self.matrices(W, shape, v, 0.0, q, exact)
-        R = -(self.matrices(W, shape, 0.0, 0.5, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))[:, 0]
-        Li = np.linalg.inv(np.linalg.cholesky(R))
-        C = np.einsum("pab,pvbc,pdc->pvad", Li, N0, Li)
-        return float(np.linalg.eigvalsh(C)[..., 0].min() / 2)
+        low = math.inf
+        for qc in self._chunks(q, exact):
+            N0 = self.matrices(W, shape, v, 0.0, qc, exact)
+            R = -(self.matrices(W, shape, 0.0, 0.5, qc, exact) - self.matrices(W, shape, 0.0, 0.0, qc, exact))[:, 0]
+            Li = np.linalg.inv(np.linalg.cholesky(R))
+            C = np.einsum("pab,pvbc,pdc->pvad", Li, N0, Li)
+            low = min(low, float(np.linalg.eigvalsh(C)[..., 0].min() / 2))
+        return low

@@ -157,3 +157,16 @@ def test_twelve_joint_init_and_show(tmp_path):
     for argv in (["init", "s.urdf", "--out", "s.toml"], ["show", "s.toml", "--no-cache"]):
         run = subprocess.run([sys.executable, "-m", "derive", *argv], cwd=tmp_path, capture_output=True, text=True)
         assert run.returncode == 0, run.stderr[-2000:]
+
+
+def test_simulate_refuses_a_run_past_its_samples_before_it_starts():
+    """600 million steps of 12 joints (snake12's starter sample time, 5e-08 s, over 30 s) are refused with
+    the numbers and the ways on, not a MemoryError; a 7-joint arm's 1 ms over 30 s passes."""
+    from types import SimpleNamespace
+
+    from derive.cli.simulate import too_many
+    from derive.errors import DeriveError
+
+    with pytest.raises(DeriveError, match=r"600,000,000 steps of 12 joints.*raise sample_time.*at most 0\.14 s"):
+        too_many(SimpleNamespace(duration=30.0, sample_time=5e-8), 12)
+    too_many(SimpleNamespace(duration=30.0, sample_time=1e-3), 7)

@@ -170,3 +170,19 @@ def test_simulate_refuses_a_run_past_its_samples_before_it_starts():
     with pytest.raises(DeriveError, match=r"600,000,000 steps of 12 joints.*raise sample_time.*at most 0\.14 s"):
         too_many(SimpleNamespace(duration=30.0, sample_time=5e-8), 12)
     too_many(SimpleNamespace(duration=30.0, sample_time=1e-3), 7)
+
+
+def test_identities_over_j_and_g_are_not_attempted_past_field_joints():
+    """Past FIELD_JOINTS the field identities (eq. 15, 21-25, 29, 33-38, 41-42) are unproven with the limit
+    stated, before any conversion; the gains' (no J, no G) are still decided."""
+    from types import SimpleNamespace
+
+    from derive.proofs import project
+
+    called = []
+    heavy = project.formal_first(lambda d: called.append(d))
+    out = heavy(SimpleNamespace(n=project.FIELD_JOINTS + 1))
+    assert not called and out.status.value == "unproven"
+    assert f"past {project.FIELD_JOINTS} joints" in out.detail and "not attempted" in out.summary
+    light = project.formal_first(lambda d: called.append(d) or "decided", note=False)
+    assert light(SimpleNamespace(n=20, formal_view=None)) == "decided" and called

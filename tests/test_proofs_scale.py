@@ -18,7 +18,7 @@ from derive.model.spec import load_arm
 from derive.proofs import dynamics as proofs_dynamics, project as proofs_project
 from derive.proofs.core import Status, run
 from derive.proofs.exact import Undecidable
-from derive.proofs.torus import Torus
+from derive.proofs.torus import TooLarge, Torus
 
 DATA = Path(__file__).parent / "data"
 
@@ -59,6 +59,10 @@ def test_convert_keeps_only_its_roots_and_agrees_with_the_one_by_one_conversion(
     assert T.convert(exprs[:2]) == got[:2]             # the roots are reused, not reconverted
     with pytest.raises(Undecidable, match="outside sin/cos"):
         T.convert([a * x])
+    small = Torus([a, b], [x, y], total=10)   # the terms held at once: past the budget, TooLarge, memo emptied
+    with pytest.raises(TooLarge, match="held at once"):
+        small.convert(exprs)
+    assert not small._memo
 
 
 def test_eq12_skew_energy_and_eq15_rnea_law_proved_for_the_7_joint_panda(panda):

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from derive.control.pipeline import Derivation
 
 LIMIT = 2_000_000       # terms of one polynomial: the proofs' memory budget (about 1 GB at worst)
-TOTAL = 30_000_000      # terms one conversion holds at once (about 2 GB; snake12's Coriolis matrix: 5.6 million)
+X
 _RINGS: dict = {}
 
 

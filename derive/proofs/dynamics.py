@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from derive.control.pipeline import Derivation
 
 LIMIT = 2_000_000       # terms of one polynomial: the proofs' memory budget (about 1 GB at worst)
-X
+TOTAL = 10_000_000      # terms one conversion holds at once (snake12's Coriolis matrix: 5.6 million, under 8 million held)
 _RINGS: dict = {}
 
 

@@ -186,3 +186,19 @@ def test_identities_over_j_and_g_are_not_attempted_past_field_joints():
     assert f"past {project.FIELD_JOINTS} joints" in out.detail and "not attempted" in out.summary
     light = project.formal_first(lambda d: called.append(d) or "decided", note=False)
     assert light(SimpleNamespace(n=20, formal_view=None)) == "decided" and called
+
+
+def test_expm_in_chunks_gives_the_bits_of_one_pass(monkeypatch):
+    """The zero-order hold's exp of a stack in chunks, each at the whole stack's scaling: the same bits as
+    one pass (a stack whose norms differ by 1e4, so one matrix sets the scaling of all), and e^A itself."""
+    import scipy.linalg
+
+    from derive.control import zoh
+
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((37, 6, 6)) * np.logspace(-2, 2, 37)[:, None, None]
+    whole = zoh.expm(M)
+    monkeypatch.setattr(zoh, "CHUNK_ELEMENTS", 5 * 36)
+    chunked = zoh.expm(M)
+    assert np.array_equal(whole, chunked)
+    np.testing.assert_allclose(chunked[0], scipy.linalg.expm(M[0]), rtol=1e-12, atol=1e-14)

@@ -18,21 +18,19 @@ from __future__ import annotations
 import argparse
 import hashlib
 import sys
-from pathlib import Path
 
 from derive import jsonio
-from derive.errors import DataError
 
 
 def run(args: argparse.Namespace) -> int:
     from derive.cli import load_cli_arm
+    from derive.cli.identify import outputs
     from derive.codegen.emit import write_file, write_tree
     from derive.identify.exclude import parse_exclude
     from derive.identify.log import log_paths, read_log
     from derive.identify.payload import check_arm, identify_payload
     from derive.identify.payload_file import payload_result, payload_text, report_data, report_markdown, summary
     from derive.model.payload import tip_to_body
-    from derive.model.spec import resolve_arm_path
 
     rules = parse_exclude(args.exclude)
     logs = list(args.payload) + list(args.logs)
@@ -42,11 +40,7 @@ def run(args: argparse.Namespace) -> int:
     arm = load_cli_arm(args)
     check_arm(arm)
     logs = [read_log(p, arm.n) for p in paths]
-    source = resolve_arm_path(args.arm)
-    out = args.out if args.out is not None else Path(f"{arm.name}_payload.toml")
-    if out.exists() and out.resolve() == source.resolve():
-        raise DataError(f"--out {out}: expected a new file, got the arm file itself (it would be replaced)")
-    report = args.report if args.report is not None else out.with_name(out.stem + "_report")
+    source, out, report = outputs(args, arm, "payload")
     shape = None
     if arm.payload is not None and arm.payload.inertia is not None and arm.payload.mass > 0:
         shape = tip_to_body(arm.chain, (0.0, 0.0, 0.0), arm.payload.inertia_at(1.0))[1]

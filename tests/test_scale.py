@@ -193,7 +193,9 @@ def test_expm_in_chunks_gives_the_bits_of_one_pass(monkeypatch):
     one pass (a stack whose norms differ by 1e4, so one matrix sets the scaling of all), and e^A itself."""
     import scipy.linalg
 
-    from derive.control import zoh
+    import importlib
+
+    zoh = importlib.import_module("derive.control.sampling.zoh")   # the package's name zoh is the function
 
     rng = np.random.default_rng(3)
     M = rng.standard_normal((37, 6, 6)) * np.logspace(-2, 2, 37)[:, None, None]

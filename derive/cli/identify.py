@@ -67,18 +67,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "too little of the torque; identify Coulomb friction on one-signed joints")
 
 
-def outputs(args: argparse.Namespace, arm, suffix: str) -> tuple[Path, Path, Path]:
-    """The arm file read (ARM), the one identify writes (``--out``, default ``<arm>_<suffix>.toml``) and its report folder
-    (``--report``, default ``<out>_report``); DataError when --out names the arm file itself."""
-    from derive.model.spec import resolve_arm_path
-
-    source = resolve_arm_path(args.arm)
-    out = args.out if args.out is not None else Path(f"{arm.name}_{suffix}.toml")
-    if out.exists() and out.resolve() == source.resolve():
-        raise DataError(f"--out {out}: expected a new file, got the arm file itself (it would be replaced)")
-    return source, out, args.report if args.report is not None else out.with_name(out.stem + "_report")
-
-
 def run(args: argparse.Namespace) -> int:
     if args.payload is not None:
         from derive.cli.identify_payload import run as run_payload
@@ -92,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from derive.identify.log import log_paths, read_log
     from derive.identify.quality import findings
     from derive.identify.report import parameter_figure, report_data, report_json, report_markdown, torque_figure
+    from derive.identify.armfile import outputs
     from derive.identify.run import identify
 
     rules = parse_exclude(args.exclude)
@@ -104,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     paths = log_paths(args.logs)
     arm = load_cli_arm(args)
     logs = [read_log(p, arm.n) for p in paths]
-    source, out, report = outputs(args, arm, "identified")
+    source, out, report = outputs(args.arm, args.out, args.report, arm, "identified")
     idn = identify(arm, logs, args.cutoff, args.coulomb, rules=rules, uncertainty=R, force=args.force)
     found = findings(idn)
     blocking = [f for f in found if f.kind == "refusal" and not args.force]

@@ -24,7 +24,7 @@ from derive import jsonio
 
 def run(args: argparse.Namespace) -> int:
     from derive.cli import load_cli_arm
-    from derive.cli.identify import outputs
+    from derive.identify.armfile import outputs
     from derive.codegen.emit import write_file, write_tree
     from derive.identify.exclude import parse_exclude
     from derive.identify.log import log_paths, read_log
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     arm = load_cli_arm(args)
     check_arm(arm)
     logs = [read_log(p, arm.n) for p in paths]
-    source, out, report = outputs(args, arm, "payload")
+    source, out, report = outputs(args.arm, args.out, args.report, arm, "payload")
     shape = None
     if arm.payload is not None and arm.payload.inertia is not None and arm.payload.mass > 0:
         shape = tip_to_body(arm.chain, (0.0, 0.0, 0.0), arm.payload.inertia_at(1.0))[1]

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import tomlkit
 
-from derive.errors import DerivationError, SpecError
+from derive.errors import DataError, DerivationError, SpecError
 from derive.identify.run import Identification
-from derive.model.spec import arm_from_dict
+from derive.model.spec import arm_from_dict, resolve_arm_path
 
 _INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
@@ -124,3 +124,13 @@ def relocate_urdf(doc, source: Path, out: Path) -> None:
         return
     target = os.path.abspath(source.parent / str(table["urdf"]))
     table["urdf"] = Path(os.path.relpath(target, Path(os.path.abspath(out.parent)))).as_posix()
+
+
+def outputs(arm_arg, out: Path | None, report: Path | None, arm, suffix: str) -> tuple[Path, Path, Path]:
+    """The arm file read (ARM, ``arm_arg``), the one identify writes (``--out``, default ``<arm>_<suffix>.toml``)
+    and its report folder (``--report``, default ``<out>_report``); DataError when --out names the arm file."""
+    source = resolve_arm_path(arm_arg)
+    out = out if out is not None else Path(f"{arm.name}_{suffix}.toml")
+    if out.exists() and out.resolve() == source.resolve():
+        raise DataError(f"--out {out}: expected a new file, got the arm file itself (it would be replaced)")
+    return source, out, report if report is not None else out.with_name(out.stem + "_report")

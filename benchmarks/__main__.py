@@ -13,7 +13,7 @@ import sys
 import time
 
 SECTIONS: tuple[str, ...] = ("dynamics", "codegen", "simulation", "mujoco", "observer", "spatial", "identify", "payload",
-                             "corpus")
+                             "scaling", "corpus")
 
 
 def main(names: tuple[str, ...] = SECTIONS) -> int:

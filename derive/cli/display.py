@@ -19,6 +19,9 @@ import sympy as sp
 from derive.dynamics.fourier import fourier_series
 
 BUDGET = 200          # terms per matrix printed whole
+# an entry's Fourier form has at most prod over the angles (2 d_k + 1) terms (d_k its degree in angle k):
+# 5^11 for a 12-joint J. Past this many the matrix is shown at the zero pose, and says so
+TERM_CAP = 50_000
 # the tolerances tried, relative to the matrix's largest term, when a matrix is over the budget
 _LADDER = tuple(m * 10.0 ** e for e in range(-6, 1) for m in (1, 2, 5))
 
@@ -31,6 +34,7 @@ class Shown:
     value: object
     notes: dict
     tol: float = 0.0
+    note: str = ""    # what the whole quantity is, when not its Fourier form (past TERM_CAP)
 
 
 def _quotient(x: sp.Expr, angles) -> sp.Expr:
@@ -46,6 +50,9 @@ def shown(value: object, angles: tuple[sp.Symbol, ...], exact: bool, budget: int
     rationals and every term; ``budget`` None: every term."""
     matrix = isinstance(value, sp.MatrixBase)
     items = list(value) if matrix else [sp.sympify(value)]
+    terms = term_bound(items, angles)
+    if terms > TERM_CAP:
+        return _at_zero(value, items, angles, exact, terms)
     try:
         series = fourier_series(items, angles)
     except ValueError:                     # a quotient (L of a 2-link arm)
@@ -71,6 +78,58 @@ def shown(value: object, angles: tuple[sp.Symbol, ...], exact: bool, budget: int
             notes[index] = (f"and {dropped} term{'s' if dropped > 1 else ''} below {tol * scale:.1e}, "
                             f"their sum at most {bound:.1e}")
     return Shown(_pack(value, out, exact), notes, tol)
+
+
+def term_bound(items, angles) -> float:
+    """An upper bound of the terms of the largest entry's Fourier form: prod_k (2 d_k + 1) over the
+    angles, d_k the entry's degree in cos, sin of angle k read off its graph in one pass (a sum the
+    largest, a product the sum, a power the multiple; sin, cos of an integer combination its
+    coefficients); 0 for entries that are not such polynomials (fourier_series says why)."""
+    from derive.dynamics.program import postorder
+
+    index = {a: i for i, a in enumerate(angles)}
+    m = len(angles)
+    zero = (0,) * m
+    deg: dict = {}
+    for e in postorder(items):
+        if e.is_Symbol or not e.args:
+            deg[e] = zero
+        elif isinstance(e, (sp.sin, sp.cos)):
+            arg = e.args[0]
+            d = [0] * m
+            for t in sp.Add.make_args(arg):
+                c, rest = t.as_coeff_Mul()
+                if rest in index and c.is_Integer:
+                    d[index[rest]] += abs(int(c))
+                elif t.free_symbols & set(index):
+                    return 0.0
+            deg[e] = tuple(d)
+        elif e.is_Add:
+            deg[e] = tuple(max(col) for col in zip(*(deg[a] for a in e.args)))
+        elif e.is_Mul:
+            deg[e] = tuple(sum(col) for col in zip(*(deg[a] for a in e.args)))
+        elif e.is_Pow and e.exp.is_Integer and e.exp >= 0:
+            deg[e] = tuple(int(e.exp) * x for x in deg[e.base])
+        else:
+            deg[e] = zero
+    top = 0.0
+    for x in items:
+        count = 1.0
+        for d in deg[sp.sympify(x)]:
+            count *= 2 * d + 1
+        top = max(top, count)
+    return top
+
+
+def _at_zero(value, items, angles, exact: bool, terms: float) -> Shown:
+    """``value`` at the zero pose (every angle 0), its numbers to 15 digits, with the statement why."""
+    from derive.dynamics.dag import xreplace_all
+
+    out = xreplace_all(items, {a: sp.Integer(0) for a in angles})
+    out = [sp.expand(x) if exact else sp.expand(sp.N(x, 15)) for x in out]
+    note = (f"at θ = 0: its Fourier form has up to {terms:.1e} terms an entry, past show's {TERM_CAP:,}; "
+            "derive show --at evaluates it at any pose")
+    return Shown(_pack(value, out, exact), {}, 0.0, note)
 
 
 def _number(x, exact: bool) -> sp.Expr:

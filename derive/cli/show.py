@@ -175,12 +175,14 @@ def _text_block(e: Entry, sh: Shown, pr: TextPrinter, unicode: bool, limit: int)
     printed = [[pr.terms(x) for x in value.row(i)] for i in range(value.rows)]
     grid = _grid([[" ".join(t) for t in row] for row in printed], unicode)
     if not sh.notes and max(width(g) for g in grid) + 2 <= limit:
-        return [*_fill(head, limit), *("  " + g for g in grid)]
+        return [*_fill(head + (f"; {sh.note}" if sh.note else ""), limit), *("  " + g for g in grid)]
     symmetric = value.is_square and value == value.T
     base = e.element[0] if unicode else e.element[1]
     notes, lines = [], []
     if sh.tol:
         notes.append(_precision(sh))
+    if sh.note:
+        notes.append(sh.note)
     for i in range(value.rows):
         for j in range(value.cols):
             if symmetric and j < i:
@@ -255,7 +257,8 @@ def _tex_sum(pr: TexPrinter, expr: sp.Expr, limit: int = 140) -> list[str]:
 
 def _tex_block(d: Derivation, e: Entry, sh: Shown, pr: TexPrinter) -> list[str]:
     label = rf"\label{{derive:{d.arm.name}:{e.key}}}"
-    head = f"% {e.ascii}: {e.what} (paper {e.ref})" + (f"; {_precision(sh)}" if sh.tol else "")
+    head = f"% {e.ascii}: {e.what} (paper {e.ref})" + (f"; {_precision(sh)}" if sh.tol else "") \
+        + (f"; {sh.note}" if sh.note else "")
     value = sh.value
     if value is None:
         return [head]

@@ -70,6 +70,23 @@ def add_plant_arguments(parser) -> None:
                              "plants then have the same parameters)")
 
 
+MAX_SAMPLES = 1 << 25   # steps x joints of one run: each trace array 256 MiB (several per controller) at most
+
+
+def too_many(settings, n: int) -> None:
+    """A DeriveError (derive exits 2 with its message), before anything runs, when the experiment's steps
+    times the joints pass MAX_SAMPLES (a 12-joint chain's starter sample time of 5e-08 s, set by its
+    forward-Euler observer step, over 30 s was 600 million steps: a MemoryError of 54 GiB in the pulse train)."""
+    steps = int(round(settings.duration / settings.sample_time))
+    if steps * n > MAX_SAMPLES:
+        raise DeriveError(f"simulate: [simulation] sample_time = {settings.sample_time:g} s over duration = "
+                          f"{settings.duration:g} s is {steps:,} steps of {n} joints, past the limit of {MAX_SAMPLES:,} "
+                          f"samples (steps x joints) a run keeps in memory; raise sample_time (derive check states "
+                          f"the sample-time limits of each form and observer step: --observer implicit allows far longer "
+                          f"ones for a stiff observer) or shorten --duration (at most "
+                          f"{MAX_SAMPLES // n * settings.sample_time:.3g} s at this sample time)")
+
+
 def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = False,
                    duration: float | None = None, observer: str = "explicit", plant: str = "derive",
                    friction: str = "file", compare: bool = False, warn=None,
@@ -90,6 +107,7 @@ def simulate_files(arm, names: list[str], backend_kind: str, progress: bool = Fa
 
     cache = SimCache(None) if cache is None else cache
     settings = arm.simulation if duration is None else replace(arm.simulation, duration=duration)
+    too_many(settings, len(arm.motors))
     main = plants.select(arm, plant, friction)
     sources = [main, plants.select(arm, "mujoco" if plant == "derive" else "derive", friction)] if compare else [main]
     d = cached_derivation(arm, cache)

@@ -10,6 +10,14 @@ observer state z, the momentum observer's m) enters with an error bound b, propa
 Jacobian A of the step in the state: b_next = |A| b + l, l the step's own
 rounding bound (Higham, sec. 3.3, applied per step).
 
+Carried over a sequence, b_{k+1} = |A_k| b_k + l_k loses the cancellation that makes A_k contract:
+where some |A_k| has a Perron root above 1 (a 12-joint chain's observer step: the off-diagonal
+entries of dt W J^-1 add up), the bound grows geometrically in the steps while the error does
+not (snake12: a relative error "up to 7.3e+71" in double). There the error set is carried as a
+zonotope instead (:class:`Zonotope`: e_k in {G_k xi : |xi| <= 1}, G_{k+1} = [A_k G_k, diag(l_k)]),
+absolute values taken only for the bound of each step, so b_k <= sum_j |A_{k-1} ... A_{j+1}| l_j:
+the same first-order model, never looser, and polynomial (its generators are capped).
+
 Where a clip decision lies within the bound of its limit, the generated code
 may decide either way: the bound then covers both branches (for the held
 integrator, the jump dt e). Everything is batched: K points at once, arrays
@@ -47,6 +55,55 @@ class _Entry:
     outputs: tuple[int, ...]
     wrt: tuple[int, ...]
     sizes: tuple[int, ...]
+
+
+class Zonotope:
+    """A set {G xi : |xi|_inf <= 1} of n-vectors (G: n x g), for carrying an error bound through a
+    linear recursion with its cancellations. Past CAP n generators the smallest (1-norm) are boxed:
+    replaced by diag(sum of their |g|), n generators that contain them (Girard's order reduction),
+    so a step costs O(CAP n^3)."""
+
+    CAP = 16
+
+    def __init__(self, n: int) -> None:
+        self.G = np.zeros((n, 0))
+
+    def bound(self) -> np.ndarray:
+        """The interval hull: |e_i| <= sum_j |G_ij|."""
+        return np.abs(self.G).sum(axis=1)
+
+    def image(self, A: np.ndarray) -> np.ndarray:
+        """The bound of A e over the set: sum_j |(A G)_ij| (<= |A| times the bound)."""
+        return np.abs(A @ self.G).sum(axis=1)
+
+    def reset(self, b: np.ndarray) -> None:
+        """The box |e| <= b (after a step bounded by other means)."""
+        self.G = np.diag(np.asarray(b, float))
+
+    def step(self, A: np.ndarray, add: np.ndarray, hold: np.ndarray | None = None) -> None:
+        """e -> A e + d, |d| <= add (rows ``hold`` kept as they were: a held integrator)."""
+        G = A @ self.G
+        if hold is not None and hold.any():
+            G[hold] = self.G[hold]
+        add = np.asarray(add, float)
+        nz = np.flatnonzero(add)
+        new = np.zeros((G.shape[0], nz.size))
+        new[nz, np.arange(nz.size)] = add[nz]
+        G = np.hstack([G, new])
+        n = G.shape[0]
+        if G.shape[1] > self.CAP * n:
+            order = np.argsort(np.abs(G).sum(axis=0), kind="stable")
+            small = order[:G.shape[1] - (self.CAP - 1) * n]
+            G = np.hstack([G[:, np.sort(order[small.size:])], np.diag(np.abs(G[:, small]).sum(axis=1))])
+        self.G = G
+
+
+def contracts(A: np.ndarray) -> bool:
+    """Whether every |A_k| of the stack (steps x n x n) has its Perron root at most 1: the entrywise
+    recursion b_{k+1} = |A_k| b_k + l_k does not grow geometrically (module docstring)."""
+    if A.shape[0] == 0:
+        return True
+    return bool(np.abs(np.linalg.eigvals(np.abs(A))).max() <= 1.0 + 1e-12)
 
 
 class ApiBounds:
@@ -222,6 +279,8 @@ class ApiBounds:
         Returns (u bound, final state bound, a clip decision was in doubt)."""
         ev = self._steps(form, states, xs, dt)
         lim = self.u_max
+        if not contracts(ev["A_next"]):
+            return self._zonotope_sequence(form, ev)
         A_raw, A_next, l_raw, l_next = np.abs(ev["A_raw"]), np.abs(ev["A_next"]), ev["l_raw"], ev["l_next"]
         gap, limited = np.abs(np.abs(ev["u_raw"]) - lim), ev["limited"]
         b_lim = lim * self.w[CONST]
@@ -248,11 +307,38 @@ class ApiBounds:
         ev = self._steps(form, states, xs, dt)
         e = np.zeros(self.n)
         e_u = e
+        if not contracts(ev["A_next"]):   # the error set as a zonotope (module docstring)
+            Z = Zonotope(self.n)
+            for k in range(len(ev["x"])):
+                e_u = Z.image(ev["A_raw"][k]) + r_u[k]
+                Z.step(ev["A_next"][k], r_s[k], ev["limited"][k] if form == "npid" else None)
+            return e_u, Z.bound()
         for k in range(len(ev["x"])):
             e_u = np.abs(ev["A_raw"][k]) @ e + r_u[k]
             moved = np.abs(ev["A_next"][k]) @ e
             e = (np.where(ev["limited"][k], e, moved) if form == "npid" else moved) + r_s[k]
         return e_u, e
+
+    def _zonotope_sequence(self, form: str, ev: dict) -> tuple[np.ndarray, np.ndarray, bool]:
+        """:meth:`sequence` with the state's error set carried as a :class:`Zonotope`; a step whose
+        clip decision is in doubt is bounded by :meth:`_combine` on the set's box, which restarts it."""
+        lim = self.u_max
+        gap, limited = np.abs(np.abs(ev["u_raw"]) - lim), ev["limited"]
+        b_lim = lim * self.w[CONST]
+        Z = Zonotope(self.n)
+        doubt = False
+        b_u = np.zeros(self.n)
+        for k in range(len(ev["x"])):
+            b_raw = Z.image(ev["A_raw"][k]) + ev["l_raw"][k]
+            if ((lim > 0) & (gap[k] <= b_raw)).any():
+                step = self._combine(form, ev, slice(k, k + 1), Z.bound()[None, :])
+                b_u, doubt = step.u_bound[0], True
+                Z.reset(step.next_bound[0])
+                continue
+            b_u = np.where(limited[k], b_lim, b_raw)
+            held = limited[k] if form == "npid" else None   # a held integrator: its error as it was
+            Z.step(ev["A_next"][k], ev["l_next"][k] if held is None else np.where(held, 0.0, ev["l_next"][k]), held)
+        return b_u, Z.bound(), doubt
 
 
 def relative(bound, values) -> float:

@@ -27,6 +27,7 @@ import sympy as sp
 
 from derive.control import certificate as cert
 
+from derive.control.certificate import norm_bound
 from derive.control.certificate import report as cert_report
 from derive.dynamics.planar import a6_form
 from derive.proofs.core import Counterexample, Kind, Obligation, Outcome, Status, combine, not_applicable, positive
@@ -81,6 +82,12 @@ def check_certificate(d: Derivation) -> Outcome:
                            f"box; {speed}; lower max_joint_speed or raise W (w = 'auto' chooses one)",
                            counterexample=cex, evidence=evidence,
                            summary=f"stated max_joint_speed not covered: {speed.split(' (numeric')[0]}")
+        if dec.verdict is cert.Verdict.UNPROVEN and r.one_bound:
+            return Outcome(Status.UNPROVEN, "the stated box is beyond what the one-matrix bound proves (past "
+                           f"{norm_bound.MAX_VERTEX_DEPS} coordinates without J's series: lambda_min(W + W^T) - "
+                           "v ||sum_k s_k |dJ/dq_k| bound||_2 > 0, derive.control.certificate.norm_bound; sound, not exact); numeric "
+                           f"evidence: smallest eigenvalue {dec.low:.4g} at the sampled points and vertices; {speed}",
+                           evidence=evidence, summary="stated box: unproven (beyond the one-matrix bound)")
         if dec.verdict is cert.Verdict.UNPROVEN:
             return Outcome(Status.UNPROVEN, f"the certificate on the stated box was not decided in {dec.cells} cells; "
                            f"numeric evidence: smallest eigenvalue {dec.low:.4g} at the sampled centres; {speed}",

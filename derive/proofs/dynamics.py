@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from derive.control.pipeline import Derivation
 
 LIMIT = 2_000_000       # terms of one polynomial: the proofs' memory budget (about 1 GB at worst)
+TOTAL = 10_000_000      # terms one conversion holds at once (snake12's Coriolis matrix: 5.6 million, under 8 million held)
 _RINGS: dict = {}
 
 
@@ -45,7 +46,7 @@ class _Ring:
         s = d.dynamics.sym
         rotating = set(d.dynamics.angles)
         others = [q for q in d.theta if q not in rotating] + list(d.dtheta) + list(s.u)
-        self.T = Torus(d.dynamics.angles, others, limit=LIMIT)
+        self.T = Torus(d.dynamics.angles, others, limit=LIMIT, total=TOTAL)
         self._cache: dict[str, list] = {}
 
     def get(self, key: str, make) -> list:
@@ -87,7 +88,8 @@ def check_skew(d: "Derivation") -> Outcome:
     decided exactly on the torus of the angles with the rates."""
     R, n = ring(d), d.n
     T = R.T
-    C = R.get("C", lambda: d.numeric(d.dynamics.coriolis))
+    C = T.convert(list(d.numeric(d.dynamics.coriolis)))   # not kept: no other obligation needs C (12 joints: 5.6M terms)
+    T.forget()
     rates = R.rates()
     for i in range(n):
         for j in range(i, n):
@@ -170,7 +172,7 @@ def check_rnea_law(d: "Derivation") -> Outcome:
     # the a-coefficient, at theta' = 0 (it has no theta'): d RNEA(q, 0, a) / d a_j = J e_j, one
     # conversion with the a_j as variables of their own ring (the law is affine in them)
     rotating = set(d.dynamics.angles)
-    T = Torus(d.dynamics.angles, [q for q in d.theta if q not in rotating] + a, limit=LIMIT)
+    T = Torus(d.dynamics.angles, [q for q in d.theta if q not in rotating] + a, limit=LIMIT, total=TOTAL)
     num = d.numeric(Rn)
     rest = {v: sp.Integer(0) for v in d.dtheta}
     rows = T.convert(xreplace_all(num, rest, keep_sums=True))
@@ -198,7 +200,7 @@ def _whole_rnea_law(d: "Derivation") -> Outcome:
     s = d.dynamics.sym
     rotating = set(d.dynamics.angles)
     others = [q for q in d.theta if q not in rotating] + list(d.dtheta) + list(s.e) + list(s.de) + list(s.ddyd)
-    T = Torus(d.dynamics.angles, others, limit=LIMIT)
+    T = Torus(d.dynamics.angles, others, limit=LIMIT, total=TOTAL)
     for i, (x, y) in enumerate(zip(T.convert(list(law)), T.convert(list(d.u_star)))):
         if not T.is_zero(x - y):
             return Outcome(Status.REFUTED, f"the RNEA law differs from eq. (15) in u*[{i + 1}] (expanded whole)")

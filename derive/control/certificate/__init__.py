@@ -37,6 +37,8 @@ import numpy as np
 from derive.control.certificate.decision import (FLOAT_MARGIN, Decision, Verdict, _positive_definite,  # noqa: F401
                                                   _spectral_norm, halve_cells)
 from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
+from derive.control.certificate.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
+from derive.control.certificate.suprema import Suprema
 from derive.control.certificate.split import MAX_INNER, SplitModel, split_model
 
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
@@ -44,9 +46,10 @@ __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Ver
 DEFAULT_BUDGET = 20_000   # cells per decision
 MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
+CELL_ELEMENTS = 1 << 22     # numbers of the largest per-batch array of a decision (the Hessian term)
 
 
-class ObserverCertificate:
+class ObserverCertificate(Suprema):
     """Decides (*) for an arm's J: give W, the box shape s (n), its scale v and the rate beta."""
 
     def __init__(self, model: InertiaModel, shape=None, inner: int = MAX_INNER, wider: bool = False,
@@ -80,10 +83,17 @@ class ObserverCertificate:
                 self.grouped = GroupedStage(model, box)
         self.target = self.split if self.split is not None else model
         self.inner = list(self.split.inner) if self.split is not None else list(range(m))
-        self.all_signs = np.array(list(itertools.product((1.0, -1.0), repeat=m))) if m else np.zeros((1, 0))
+        # many coordinates without J's series: one matrix bound (derive.control.certificate.norm_bound), sampled vertices
+        self.norm = (self.split is None and m > MAX_VERTEX_DEPS and not model.unbounded
+                     and getattr(model, "bounded_by", "") == "degrees")
+        self.all_signs = sign_patterns(m)
+        if self.norm:
+            self.inner = []
         # the vertices the decision ranges over: every dep's sign, or the inner ones' with a split
         self.signs = np.ones((2 ** len(self.inner), m))
         self.signs[:, self.inner] = np.array(list(itertools.product((1.0, -1.0), repeat=len(self.inner))))
+        if self.norm:
+            self.signs = self.all_signs
 
     # -- numbers at points -------------------------------------------------------------------
     def speeds(self, shape, v: float, exact: bool = False) -> np.ndarray:
@@ -137,6 +147,8 @@ class ObserverCertificate:
         if md.m <= 2:
             per = max(4, per - per % 4)   # holds the quarter turns, where sin is +-1
         axes = [np.linspace(*span, per, endpoint=not periodic) for span, periodic in zip(md.spans, md.periodic)]
+        if per ** md.m > 2 * count:   # 2^m corners alone past the count: random points only
+            axes = [np.array([(lo + hi) / 2]) for lo, hi in md.spans]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, md.m)
         rng = np.random.default_rng(seed)
         lo = np.array([span[0] for span in md.spans])
@@ -192,6 +204,8 @@ class ObserverCertificate:
 
         if self.model.unbounded:
             return done(Verdict.UNPROVEN, 0)
+        if self.norm:
+            return self._decide_norm(W, shape, v, beta, done)
         if md.m == 0 and split is None:
             lam, _ = self.lowest(W, shape, v, beta, np.zeros((1, 0)))
             ok = lam[0] > tol
@@ -236,6 +250,11 @@ class ObserverCertificate:
 
         def mirrored(x: np.ndarray) -> np.ndarray:
             return np.concatenate([x, x[:, ::-1]], axis=1) if paired else x
+
+        # cells per batch: the Hessian's P x V' x m^2 x n^2 numbers within CELL_ELEMENTS (an 8-joint chain's
+        # 512 cells x 64 vertices x 7^2 x 8^2 were 0.8 GB an array, 2.3 GB in check); the cells examined are
+        # the same (each cell's fate is its own), only the budget's test comes at other batch boundaries
+        batch = int(min(batch, max(16, CELL_ELEMENTS // max(1, lead * max(m, 1) ** 2 * n * n))))
 
         while centres.shape[0]:
             c, h = centres[:batch], halves[:batch]
@@ -307,64 +326,27 @@ class ObserverCertificate:
                 centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
 
+    def _decide_norm(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, done) -> Decision:
+        """(*) by one matrix bound for every theta and speed (derive.control.certificate.norm_bound); a refutation
+        only from N itself at seeded samples and sampled vertices. One cell."""
+        sc = np.outer(self.model.scale, self.model.scale)
+        tol = FLOAT_MARGIN * (1 + np.linalg.norm((W + W.T) * sc, 2))
+        q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, EXACT_SAMPLES), exact=True)
+        lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, exact=True))[..., 0]
+        i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
+        worst = (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi]))
+        if lam[i, vi] <= 0:
+            return done(Verdict.REFUTED, 1, None, worst, float(lam[i, vi]))
+        bound = norm_lower_bound(self.model, W, shape, v, beta)
+        if bound > tol:
+            return done(Verdict.PROVED, 1, bound, None, float(lam[i, vi]))
+        return done(Verdict.UNPROVEN, 1, None, worst, float(lam[i, vi]))
+
     def _grouped_for(self, shape, beta: float) -> bool:
         """Whether the grouped stage applies: it exists, rate 0, and the box has its shape."""
         return self.grouped is not None and beta == 0.0 and np.array_equal(
             np.asarray(shape, dtype=float)[[c.index for c in self.model.deps]], self.grouped.model.shape)
 
     # -- numeric suprema ---------------------------------------------------------------------
-    def speed_supremum(self, W, shape, beta: float = 0.0, count: int = 4096, exact: bool = False) -> float:
-        """Numeric estimate (an upper bound up to sampling) of the largest v for which (*) holds
-        (with a split and not ``exact``: its sound form N_A - U, which is affine in v as N is; the
-        largest of the split's, the ``wider`` split's and, at rate 0, the ``grouped`` stage's, whose
-        estimate is its own, derive.control.certificate.grouped_union.Shared.supremum): min over samples and
-        vertices of 1 / lambda_max(A^-1/2 K A^-1/2), A = N at v = 0, K = A - N at v = 1; 0 when A
-        itself fails somewhere."""
-        own = self._speed_supremum(W, shape, beta, count, exact)
-        if exact:
-            return own
-        if self.wider is not None:
-            own = max(own, self.wider._speed_supremum(W, shape, beta, count, exact))
-        if self._grouped_for(shape, beta):
-            own = max(own, self.grouped.supremum(W))
-        return own
 
-    def _speed_supremum(self, W, shape, beta: float, count: int, exact: bool) -> float:
-        q = self.samples(count, exact=exact)
-        W = np.asarray(W, dtype=float)
-        A = self.matrices(W, shape, 0.0, beta, q, exact)[:, 0]
-        if np.linalg.eigvalsh(A)[:, 0].min() <= 0:
-            return 0.0
-        if self.model.m == 0:
-            return math.inf
-        Li = np.linalg.inv(np.linalg.cholesky(A))
-        if exact or self.split is None:
-            # K = J'(theta, s) at the vertices s, linear in s: the vertices -s give -K, so half of them
-            # and both ends of the spectrum give every lambda_max
-            half = self.speeds(shape, 1.0, True)[self.all_signs[:, 0] > 0]
-            K = np.einsum("vk,pkij->pvij", half, self.model.dJ(q))
-            lam = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))
-            top = max(lam[..., -1].max(), -lam[..., 0].min())
-        else:
-            K = -(self.matrices(W, shape, 1.0, 0.0, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))
-            top = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))[..., -1].max()
-        return math.inf if top <= 0 else float(1.0 / top)
 
-    def rate_supremum(self, W, shape, v: float, count: int = 4096, exact: bool = False) -> float:
-        """Numeric estimate of the largest beta for which (*) holds on the box of scale v:
-        min over samples and vertices of lambda_min(R^-1/2 N(beta = 0) R^-1/2) / 2, R = J (with a
-        split and not ``exact``: N_A - U is affine in beta too, R = J_A + U(0, 1/2); the larger of
-        the split's and the ``wider`` split's)."""
-        own = self._rate_supremum(W, shape, v, count, exact)
-        if exact or self.wider is None:
-            return own
-        return max(own, self.wider._rate_supremum(W, shape, v, count, exact))
-
-    def _rate_supremum(self, W, shape, v: float, count: int, exact: bool) -> float:
-        q = self.samples(count, exact=exact)
-        W = np.asarray(W, dtype=float)
-        N0 = self.matrices(W, shape, v, 0.0, q, exact)
-        R = -(self.matrices(W, shape, 0.0, 0.5, q, exact) - self.matrices(W, shape, 0.0, 0.0, q, exact))[:, 0]
-        Li = np.linalg.inv(np.linalg.cholesky(R))
-        C = np.einsum("pab,pvbc,pdc->pvad", Li, N0, Li)
-        return float(np.linalg.eigvalsh(C)[..., 0].min() / 2)

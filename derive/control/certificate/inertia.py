@@ -24,56 +24,13 @@ from derive.dynamics.dag import Memo, free_symbols
 from derive.dynamics.sx import to_sx
 from derive.dynamics.program import postorder
 from derive.dynamics.trigpoly import constant_angles
+from derive.control.certificate.derivative_bounds import ROUNDING, fourier_derivative_bounds  # noqa: F401 (re-exported)
 
 FULL_TURN = 2.0 * math.pi
-ROUNDING = 1e-12   # relative rounding of the discrete Fourier transform's coefficients
-
-
-def fourier_derivative_bounds(coef: np.ndarray, F: np.ndarray, polynomial=None, half=None,
-                               fourth: bool = False) -> tuple[np.ndarray, ...]:
-    """Bounds of |d^2 J/dq_j dq_k| and |d^3 J/dq_i dq_j dq_k| (m x m x n x n, m x m x m x n x n;
-    with ``fourth`` also |d^4 J|, m x m x m x m x n x n) valid for every q, from J's coefficients
-    C_f (coef: K x n x n) of the terms exp(i f.q) at integer frequencies f (F: K x m):
-    sum_f |C_f| |f_j f_k|, sum_f |C_f| |f_i f_j f_k|, ..., each |C_f| inflated by ROUNDING times the
-    sum of all of them (the transform's rounding).
-
-    ``polynomial[k]`` (m booleans): coordinate k is a length (a prismatic joint), and its column
-    of F holds the power e of t^e, t = (q_k - mid_k) / half[k] in [-1, 1] over its span: the o-th
-    derivative of t^e is at most e! / (e - o)! / half[k]^o there (0 for o > e) and |t| <= 1.
-    One matrix product over the K terms for every index tuple at once."""
-    m, n = F.shape[1], coef.shape[1]
-    orders = (2, 3, 4) if fourth else (2, 3)
-    out = tuple(np.zeros((m,) * o + (n, n)) for o in orders)
-    if m == 0:
-        return out
-    mag = np.abs(coef).reshape(coef.shape[0], n * n)
-    mag = mag + (ROUNDING * mag.sum(axis=0, keepdims=True) + 1e-300)
-    absF = np.abs(F).astype(float)
-    poly = [False] * m if polynomial is None else list(polynomial)
-
-    def factor(k: int, order: int) -> np.ndarray:
-        """The bound of the order-th derivative in coordinate k, per term (K)."""
-        if not poly[k]:
-            return absF[:, k] ** order
-        e = absF[:, k]
-        falling = np.ones_like(e)
-        for r in range(order):
-            falling = falling * np.maximum(e - r, 0.0)
-        return falling / float(half[k]) ** order
-
-    def weight(axes: tuple[int, ...]) -> np.ndarray:
-        w = np.ones(F.shape[0])
-        for k in set(axes):
-            w = w * factor(k, axes.count(k))
-        return w
-
-    tuples = [t for o in orders for t in itertools.combinations_with_replacement(range(m), o)]
-    sums = (np.array([weight(t) for t in tuples]) @ mag).reshape(-1, n, n)
-    for t, value in zip(tuples, sums):
-        target = out[orders.index(len(t))]
-        for perm in set(itertools.permutations(t)):
-            target[perm] = value
-    return out
+# J's exact series costs prod(2 d_k + 1) n^2 values (5^m n^2 for a chain): past this many, the bounds
+# come from J's supremum and its degrees (derive.control.certificate.interval: cost polynomial in n, looser)
+SERIES_BUDGET = 1 << 23
+FOURTH_BUDGET = 1 << 22   # m^4 n^2 numbers of the fourth-derivative bounds from the degrees
 
 
 @dataclass(frozen=True)
@@ -151,6 +108,8 @@ class InertiaModel:
         self.fourier: tuple[np.ndarray, np.ndarray] | None = None   # (C_f: K x n x n, f: K x m)
         self._series = None   # (coefficients, frequencies or powers, polynomial flags, half-widths)
         self._fourth: np.ndarray | None = None
+        self._first: np.ndarray | None = None   # bounds of |dJ/dq_k| (first(): degrees, intervals)
+        self.bounded_by = "series"   # how second, third are bounded: "series", "coefficients", "degrees"
         self.scale = np.ones(n)   # D^-1: 1 / sqrt of J's diagonal at the middle of the spans (the certificate's scale)
         if self.unbounded:
             return
@@ -167,8 +126,13 @@ class InertiaModel:
                 lo, hi = c.span
                 if c.angle and (hi - lo >= FULL_TURN or (c.lower is None and c.upper is None)):
                     self.spans[k], self.periodic[k] = (-math.pi, math.pi), True
-            self._series_bounds(degrees)
+            points = math.prod(d + 1 if not c.angle else 2 * d + 1 for d, c in zip(degrees, self.deps))
+            if points * n * n <= SERIES_BUDGET:
+                self._series_bounds(degrees)
+            else:
+                self._degree_bounds(J, degrees)
         else:
+            self.bounded_by = "coefficients"
             self._coefficient_bounds(J)
 
     # -- numbers -----------------------------------------------------------------------------
@@ -249,8 +213,11 @@ class InertiaModel:
         angle = {c.symbol: c.angle for c in self.deps}
         zero = (0,) * len(deps)
         memo: dict = {}
+        depset = set(deps)
+        moves: dict = {}   # whether a subexpression holds a dep (children first: linear in the graph)
         for e in postorder([sp.sympify(x) for x in J]):
-            if not (e.free_symbols & set(deps)):
+            moves[e] = e in depset if e.is_Symbol else any(moves[a] for a in e.args)
+            if not moves[e]:
                 memo[e] = zero
             elif e.is_Symbol:
                 memo[e] = None if angle[e] else tuple(int(q == e) for q in deps)
@@ -258,7 +225,7 @@ class InertiaModel:
                 coeffs = [sp.sympify(e.args[0]).coeff(q) for q in deps]
                 rest = sp.expand(e.args[0] - sum(c * q for c, q in zip(coeffs, deps)))
                 ok = all(c.is_Integer and (c == 0 or angle[q]) for c, q in zip(coeffs, deps))
-                memo[e] = tuple(abs(int(c)) for c in coeffs) if ok and not (rest.free_symbols & set(deps)) else None
+                memo[e] = tuple(abs(int(c)) for c in coeffs) if ok and not (rest.free_symbols & depset) else None
             elif any(memo[a] is None for a in e.args):
                 memo[e] = None
             elif e.is_Add:
@@ -272,6 +239,7 @@ class InertiaModel:
         degs = [memo[sp.sympify(x)] for x in J]
         if any(d is None for d in degs):
             return None
+        self.entry_degrees = np.array(degs, dtype=int).reshape(self.n, self.n, len(deps))   # per entry (n x n x m)
         return [max(d[k] for d in degs) for k in range(len(deps))]
 
     def _series_bounds(self, deg: list[int]) -> None:
@@ -312,12 +280,60 @@ class InertiaModel:
         self._series = (coef, F, poly, half)
         self.second, self.third = fourier_derivative_bounds(coef, F, poly, half)
 
+    def _degree_bounds(self, J: sp.Matrix, deg: list[int]) -> None:
+        """Bounds of the 2nd and 3rd derivatives from sup |J| and J's degrees (Bernstein, Markov:
+        derive.control.certificate.interval), for a J whose series is past SERIES_BUDGET. Cost: one pass over
+        J's graph and m^3 n^2 numbers."""
+        from derive.control.certificate.interval import degree_bounds, supremum_matrix
+
+        self.bounded_by = "degrees"
+        angle = [c.angle for c in self.deps]
+        half = [1.0 if a else max((c.span[1] - c.span[0]) / 2, 1e-300) for a, c in zip(angle, self.deps)]
+        self.supremum = supremum_matrix(J, self.deps, self.spans)
+        self._degree_args = (self.supremum, self.entry_degrees, angle, half)
+        self._J = J
+        self.second, self.third = degree_bounds(*self._degree_args)
+
+    def first(self) -> np.ndarray:
+        """Bounds of |dJ/dq_k| valid for every q within the spans (m x n x n): the smaller of the
+        degrees' (Bernstein, Markov) and interval arithmetic's on J's graph (only after
+        :meth:`_degree_bounds`; snake12: the bound of the norm certificate's J' halved)."""
+        from derive.control.certificate.interval import markov_factor
+
+        if self._first is not None:
+            return self._first
+        S, deg, angle, half = self._degree_args
+        f = [deg[..., k] if a else np.vectorize(markov_factor)(deg[..., k], 1) / h
+             for k, (a, h) in enumerate(zip(angle, half))]
+        bernstein = np.array(f, dtype=float) * S[None] * (1 + 1e-12)
+        self._first = np.minimum(bernstein, self._gradient_bounds())
+        return self._first
+
+    def _gradient_bounds(self) -> np.ndarray:
+        """|dJ_ab/dq_k| over the spans (within the joint limits) by interval arithmetic on J's graph
+        (derive.control.certificate.interval.interval_gradients): m x n x n."""
+        from derive.control.certificate.interval import interval_gradients
+
+        n, m = self.n, self.m
+        pairs = [(i, j) for i in range(n) for j in range(i, n)]
+        boxes = {c.symbol: span for c, span in zip(self.deps, self.spans)}
+        G = interval_gradients([self._J[i, j] for i, j in pairs], boxes, [c.symbol for c in self.deps])
+        out = np.zeros((m, n, n))
+        for (i, j), g in zip(pairs, np.abs(G).max(axis=-1)):
+            out[:, i, j] = out[:, j, i] = g
+        return out
+
     @property
     def fourth(self) -> np.ndarray | None:
         """Bounds of |d^4 J/dq_h dq_i dq_j dq_k| valid for every q (m x m x m x m x n x n), from
-        the series (None without one: the coefficient bounds stop at the third derivative)."""
+        the series or the degrees (None without either, or past FOURTH_BUDGET numbers: the
+        coefficient bounds stop at the third derivative)."""
         if self._fourth is None and self._series is not None:
             self._fourth = fourier_derivative_bounds(*self._series, fourth=True)[2]
+        if self._fourth is None and self.bounded_by == "degrees" and self.m ** 4 * self.n ** 2 <= FOURTH_BUDGET:
+            from derive.control.certificate.interval import degree_bounds
+
+            self._fourth = degree_bounds(*self._degree_args, fourth=True)[2]
         return self._fourth
 
     def _coefficient_bounds(self, J: sp.Matrix) -> None:

@@ -42,6 +42,7 @@ class Report:
     unbounded: tuple[str, ...]
     seconds: float
     constant: bool = False   # J depends on no coordinate: J' = 0, (*) is W + W^T - 2 beta J > 0, decided exactly
+    one_bound: bool = False  # decided by one matrix bound for every theta and speed (derive.control.certificate.norm_bound)
 
 
 TRIES = (0.99, 0.97, 0.9, 0.7, 0.5, 0.25, 0.1)
@@ -137,7 +138,8 @@ def report(d, W=None, budget: int = DEFAULT_BUDGET, samples: int = 4096) -> Repo
                        floor_decision=need_dec)
     return Report(W=tuple(map(tuple, Wn.tolist())), shape=tuple(shape.tolist()), stated=stated, speed=speed,
                   speed_sup=sup_v, speed_decision=sdec, rate=rate, rate_sup=sup_b, rate_decision=rdec,
-                  stated_decision=stated_dec, unbounded=unbounded, seconds=time.perf_counter() - start)
+                  stated_decision=stated_dec, unbounded=unbounded, seconds=time.perf_counter() - start,
+                  one_bound=cert.norm)
 
 
 _MODELS: dict = {}

@@ -106,10 +106,13 @@ def speeds(box: SpeedBox, n: int, seed: int = 0) -> np.ndarray:
     if box.bounds is None:
         return np.array(out)
     s = np.array(box.bounds)
-    verts = [np.array(v) * s for v in itertools.product((1.0, -1.0), repeat=n)]
-    if len(verts) > MAX_VERTICES:
-        rng = np.random.default_rng(seed)
-        verts = [verts[i] for i in sorted(rng.choice(len(verts), MAX_VERTICES, replace=False))]
+    rng = np.random.default_rng(seed)
+    if n <= 20:   # the same seeded choice as ever, of indices into the 2^n vertices (never listed whole)
+        picks = sorted(rng.choice(2 ** n, MAX_VERTICES, replace=False)) if 2 ** n > MAX_VERTICES else range(2 ** n)
+    else:
+        picks = sorted({int(x) for x in rng.integers(0, 2 ** n, MAX_VERTICES, dtype=np.uint64)})
+    # vertex i of itertools.product((1, -1), repeat=n): bit n-1-k of i set means joint k at -1
+    verts = [np.array([-1.0 if (int(i) >> (n - 1 - k)) & 1 else 1.0 for k in range(n)]) * s for i in picks]
     alone = [sign * s[i] * np.eye(n)[i] for i in range(n) if s[i] > 0 for sign in (1.0, -1.0)]
     if n == 1:
         alone = []   # the vertices already are

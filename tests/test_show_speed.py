@@ -205,7 +205,9 @@ def test_the_linearisation_keeps_what_every_form_shares_and_gives_each_the_bits_
 
 
 def test_the_kept_zero_order_holds_drop_the_oldest_beyond_their_budget(monkeypatch):
-    from derive.control.sampling import zoh
+    import importlib
+
+    zoh = importlib.import_module("derive.control.sampling.zoh")   # the package's name zoh is the function
 
     L = {"A": np.zeros((10, 4, 4)), "Bu": np.zeros((10, 4, 2))}
     each = 10 * 6 * 6 * 8 + L["A"].nbytes + L["Bu"].nbytes      # an exp of 10 stacked 6 x 6, and the key's bytes

@@ -91,7 +91,9 @@ def loaded(arm: str, fraction: float):
 CASES = [loaded(arm, fraction) for arm in ARMS for fraction in (0.0, 0.5, 1.0)]
 
 
-@pytest.mark.parametrize("plant", ["derive", "mujoco"])
+# MuJoCo's runs of the compressed experiment are slow checks (make fuzz): tests/test_payload_plant.py holds
+# MuJoCo's payload to derive's plant in make test
+@pytest.mark.parametrize("plant", ["derive", pytest.param("mujoco", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("arm, fraction", CASES)
 def test_starter_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str) -> None:
     """The compressed starter experiment: every form tracks (RMS < 0.01 rad, no saturation, exit 0)."""

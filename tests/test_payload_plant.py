@@ -187,7 +187,7 @@ payload_com = [{com}]
     return path
 
 
-@pytest.mark.parametrize("name", ["panda", "ur5", "mjcf"])
+@pytest.mark.parametrize("name", [pytest.param("panda", marks=pytest.mark.slow), "ur5", "mjcf"])   # Panda: make fuzz
 def test_eq12_mujoco_with_the_payload_welded_to_the_tip_body_agrees_with_derives_plant(name, tmp_path):
     pytest.importorskip("mujoco")
     from derive.sim.plants import DerivedPlant, build, compare, select

@@ -150,7 +150,8 @@ def test_trig_evaluation_analysis_counts_every_rounding():
     assert trig._evaluation("double", True) > trig._evaluation("double", False) > trig.UNIT["double"]
 
 
-@pytest.mark.parametrize("real", ["double", "float"])
+# float at 3 million points under every build is a slow check (make fuzz); double runs in make test
+@pytest.mark.parametrize("real", ["double", pytest.param("float", marks=pytest.mark.slow)])
 def test_trig_compiled_within_proved_bound(real, tmp_path):
     """The compiled helper at 3 million points (see the module doc) within the proved bound
     under every build; the largest ratio error / bound at least 1/4 (x86-64 long double

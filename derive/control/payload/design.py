@@ -33,7 +33,6 @@ and the file then says what the design holds.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Callable
 
@@ -105,8 +104,3 @@ def describe(pd: PayloadDesign, rng: PayloadRange) -> list[str]:
             f"# starter's times {pd.factor:.3g}, the sample time refitted; at sample_time the linearised sampled loop",
             f"# {verdict} (largest payload, worst centre of mass in the ball: {parts}; 0.9 of the largest stable).",
             "# The controller's model carries no payload: the observer absorbs it (derive show and check state it)."]
-
-
-def needs(rng: PayloadRange | None) -> bool:
-    """Whether a design for the payload is asked for (a range with a positive mass)."""
-    return rng is not None and rng.mass > 0 and math.isfinite(rng.mass)

@@ -61,20 +61,6 @@ class PayloadPlant:
         return np.asarray(J).T.reshape(R, n, n), np.asarray(dG).T.reshape(R, n, 2 * n)
 
 
-def loaded(L: dict, dG: np.ndarray, B: np.ndarray, Jp: np.ndarray, dGp: np.ndarray, mass: float) -> dict:
-    """The linearisation ``L`` (derive.control.sampling.linear_loop.SampledLoop.linearise, rows already
-    repeated to match ``Jp``) with the plant carrying ``mass`` times the unit payload (Jp, dGp): A's
-    acceleration rows and Bu from J_true = J + mass Jp, dG_true = dG + mass dGp at theta'' = 0 (module
-    docstring); the laws' and observers' entries unchanged. ``dG``: the nominal dG/d(theta, theta') at
-    the rows. A zero mass gives ``L`` itself (the nominal loop)."""
-    if mass == 0.0:
-        return L
-    A, Bu = plant_rows(L["J"], dG, B, Jp, dGp, mass)
-    out = dict(L)
-    out["A"], out["Bu"] = A, Bu
-    return out
-
-
 def plant_rows(J: np.ndarray, dG: np.ndarray, B: np.ndarray, Jp: np.ndarray, dGp: np.ndarray,
                mass: float) -> tuple[np.ndarray, np.ndarray]:
     """(A, Bu) of the loaded plant at theta'' = 0 (R x 2n x 2n, R x 2n x n): the same for every form,

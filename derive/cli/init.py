@@ -125,7 +125,7 @@ def _umask() -> int:
 
 def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) -> str:
     """The starter text with its numbers: W and the sample time, fitted to the stated limits (and, with a
-    ``payload`` range, scaled until the payload limits cover it: derive.control.payload.design), the start
+    ``payload`` range, W shaped by the payload's inertia until the payload limits cover it: derive.control.payload.design), the start
     pose, the loads and the RK4 substeps (derive.cli.init_numbers); the file named by its absolute path."""
     from derive.cli.init_numbers import choose_gain, rk4_substeps, starter_loads, starter_pose, stated_limits
     from derive.control.starter import choose_observer, fit_to_limits
@@ -144,7 +144,7 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) ->
             return fit_to_limits(g, limits), dd
 
         pd = design(gain, d, (float(MOMENTUM_GAIN),) * src.found.chain.n, payload, restate)
-        if pd.factor != 1.0:
+        if pd.rate != 0.0:
             gain, momentum = pd.gain, pd.momentum_gain
             _, d = restate(gain, momentum)
         designed = tuple(describe(pd, payload))

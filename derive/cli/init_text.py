@@ -141,7 +141,8 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
     rows = ",\n     ".join("[" + ", ".join(_g(x) for x in row) + "]" for row in gain.W)
     lines += [
         "# The observer gain W (eq. 25; a full n x n W) [N m s/rad, N s/m on a prismatic joint's row: p = W theta'",
-        "# is a joint torque, eq. 21-22]: W = omega Jbar,",
+        "# is a joint torque, eq. 21-22]: W = omega Jbar" + (f" + rho Jp_bar (rho = {_g(gain.payload_rate)} 1/s, Jp_bar the "
+                                                          "payload's joint-space inertia: see [payload])," if gain.payload_rate else ","),
         "# Jbar the mean of J over the joint ranges, so that the observer rates, the eigenvalues of W J^-1",
         f"# (eq. 24), spread only as far as J does: {_g(lo)} ... {_g(hi)} 1/s over the ranges (omega = {_g(gain.omega)} 1/s),",
         ("# what puts the rates' geometric mean at 20 1/s, more than the observer certificate needs on" if gain.floor

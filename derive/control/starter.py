@@ -85,6 +85,7 @@ class StarterGain:
     stated: tuple[tuple[str, str, float], ...] = ()   # (observer, form, limit [s]) of the sampled loop (fit_to_limits)
     observer: str = "explicit"    # the observer step the sample time is fitted to (choose_observer)
     explicit_time: float | None = None   # s: the forward-Euler step's sample time, when the implicit step was chosen
+    payload_rate: float = 0.0    # 1/s: rho of W = omega Jbar + rho Jp_bar (derive.control.payload.design); 0: no payload term
 
 
 def _round(x: float) -> float:

@@ -1,58 +1,72 @@
 """A starter controller designed for a payload range (``derive init --payload MASS``, issue 38).
 
-Why a payload breaks the nominal starter, and what is raised. The controller's model carries no
-payload. With the disturbance observer, the inner loop of joint i behaves, in one joint's terms
-(the velocity-based DOB of Sariyildiz and Ohnishi, IEEE TIE 62(3), 2015), like a first-order lag
-of bandwidth omega_i r_i, r_i = J_nominal / J_true <= 1, around which the predictive law (eq. 15)
-closes a PD loop with gains K1, K2 scaled by the same r_i; the characteristic polynomial
+Why a payload breaks the nominal starter. The controller's model carries no payload. With the
+disturbance observer, the inner loop of joint i behaves, in one joint's terms (the velocity-based
+DOB of Sariyildiz and Ohnishi, IEEE TIE 62(3), 2015), like a first-order lag of bandwidth omega r,
+r = J_nominal / J_true <= 1, around which the predictive law (eq. 15) closes a PD loop with gains
+K1, K2 scaled by the same r; the characteristic polynomial
 
     s^3 + r (omega + K2) s^2 + r (K1 + omega K2) s + r omega K1
 
-is stable iff r (omega + K2)(K1 + omega K2) > omega K1, so for a payload several times the wrist's
-own inertia (r << 1) the observer bandwidth omega must grow roughly as 1 / r: a light wrist
-(UR5's starter: observer rates down to 4.4 1/s) loses stability to a 0.5 kg tool 10 cm off its
-axis (derive.control.payload.limits: DOBC 0.54 kg). A larger T2 (softer predictive law) does not
-help: it lowers K2 faster than K1 (0.24 kg at T2 = 0.4 s). The momentum observer's residual obeys
-r' = K (B d - r) (its rate K, not W) and needs K raised likewise.
+is stable iff r (omega + K2)(K1 + omega K2) > omega K1: the observer's rate under the payload,
+omega r, must stay above about K1 / K2. On a wrist with no rotor inertia in its model the payload
+is hundreds of times the link's own inertia about the axis (UR10, 12.5 kg 0.1 m off the flange:
+J_p,66 / J_66 = 559; the generalised eigenvalues of (J + J_p, J) reach 589 over the ranges), so
+the nominal starter's W = omega Jbar, whose rates on the wrist are those of the shoulder, loses the
+wrist to a fraction of a kilogram. Scaling all of W up does not help: the shoulder's rates, not the
+wrist's, then set the forward-Euler limit 2 / lambda_max(W J^-1), and the sample time runs out first
+(UR10: 0.37 kg at 0.1 ms with W x 64).
 
-Nominal payload: none. With J_nominal <= J_true the observer's fastest rate, and so the
-forward-Euler sample-time limit 2 / lambda_max(W J^-1), is the nominal loop's (a heavier true arm
-only slows it), and the continuous loop is stable for every r > 0 once omega is large enough;
-a nominal model heavier than the arm (the midpoint or the largest payload carried into the model)
-speeds the observer's true rate up by J_nominal / J_true with no payload, which the sample time
-must then cover, and it is the empty arm that a tool changer most often runs.
+The design: W = omega Jbar + rho Jp_bar, Jp_bar the mean of the payload's joint-space inertia J_p
+at the stated mass over the operating points and the centres of mass the statement tries
+(derive.control.payload.limits). The added term is shaped like the payload itself, coupling
+included, so that under the full payload the observer's rates are about rho in the directions the
+payload dominates, while with no payload they rise by the ratio above: rho is a rate [1/s], and the
+sample time bounds it through rho lambda_max(J^-1 Jp_bar) dt <~ 0.81 (the starter's rule, 0.45 x
+0.9 x 2 / rate). The momentum observer's K_i (diagonal) is raised likewise to rho (Jbar_ii +
+Jp_bar,ii) / Jbar_ii, within the same bound. Adding a positive semidefinite term keeps the observer
+certificate (2 W - J' grows). With the diagonal of J_p alone (no coupling) the UR10 held 6-7.6 kg
+at 0.1 ms; the full Jp_bar holds 17 kg at rho = 100 1/s.
 
-The design: the nominal starter (derive.control.starter: W = omega Jbar, certified, and the
-sample time fitted to the stated limits) is scaled by k >= 1, W -> k W and K -> k K (the observer
-certificate holds for k W when it holds for W: 2 k W - J' >= 2 W - J' > 0 for k >= 1), and the
-sample time refitted to the scaled file's stated limits, until the payload limit of every observer
-form (DOBC, NPID, MOM, the forward-Euler step) at the file's sample time covers the stated mass.
-k is estimated from the shortfall (the limits grow about linearly with k: UR5 DOBC 0.54, 1.6, 6.0 kg
-at k = 1, 4, 16) and at most TRIES designs are tried; a sample time below MIN_SAMPLE_TIME stops it,
-and the file then says what the design holds.
+The search: for each round sample time from the nominal one down to MIN_SAMPLE_TIME, rho is the
+largest the bound allows; the file is then restated (the sample time refitted to half of each
+sampled-loop limit derive show states) and the payload limits of DOBC, NPID and MOM computed there.
+The limits grow as the sample time shrinks, so the longest sample time that holds the range is found
+from the shortest sample time's figures: the limits grow about linearly with rho, so the longest
+sample time whose rho reaches the range's need is tried first, then its neighbours. A range no sample time down to MIN_SAMPLE_TIME holds is written with
+the most the design holds, and the file says so.
+
+Nominal payload: none. The inertia ratio the observer must span is (J + J_p) / J whatever payload
+the model carries (the midpoint or the largest only move the span), and a nominal model heavier than
+the arm speeds the observer's true rate up with no payload, which the sample time must then cover;
+the empty arm is what a tool changer most often runs.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from derive.control.payload.limits import PayloadLimit, payload_limit
+import numpy as np
+
+from derive.control.payload.limits import PayloadLimit, _rows, payload_limit
 from derive.model.payload import PayloadRange
 
 OBSERVER_FORMS = ("dobc", "npid", "mom")   # the forms whose payload limit the design must cover (MPC has no observer)
-TRIES = 5
-SAFETY = 1.25          # k is raised to about SAFETY x the shortfall
-MIN_STEP, MAX_STEP = 1.5, 8.0
-MIN_SAMPLE_TIME = 1e-4   # s: below this the design stops (issue 34: no starter sample time below 0.1 ms unsaid)
+RATE_DT = 0.81          # fastest observer rate x sample time (the starter's HEADROOM 0.45 x 0.9 x 2)
+MIN_SAMPLE_TIME = 2e-5  # s: the design's shortest sample time (50 kHz); the file states it when below 0.1 ms
+SAFETY = 1.1            # rho is first raised to this x the rho the range needs, scaled from the shortest's
+DIGITS = 4              # significant digits of W's and K's entries as written
 
 
 @dataclass(frozen=True)
 class PayloadDesign:
-    """The scaled starter: factor k (W and K multiplied by it), the gain (derive.control.starter.StarterGain,
-    its W scaled and its sample time refitted), the momentum gains K [1/s], the payload limits at its sample
-    time (form -> PayloadLimit, forward-Euler step), whether they cover the range, and the designs tried."""
+    """The designed starter: rho [1/s] (W = omega Jbar + rho Jp_bar; 0: the nominal starter holds the range),
+    the gain (derive.control.starter.StarterGain, sample time refitted), the momentum gains K [1/s], the
+    payload limits at its sample time (form -> PayloadLimit, forward-Euler step), whether they cover the
+    range, and the designs tried."""
 
-    factor: float
+    rate: float
     gain: object
     momentum_gain: tuple[float, ...]
     limits: dict[str, PayloadLimit]
@@ -64,11 +78,53 @@ class PayloadDesign:
         return min(self.limits[f].limit for f in OBSERVER_FORMS)
 
 
-def scaled(gain, k: float, digits: int = 4):
-    """``gain`` (StarterGain) with W, omega and the rates multiplied by k (W rounded as the starter writes it)."""
-    W = tuple(tuple(float(f"{x * k:.{digits}g}") for x in row) for row in gain.W)
-    return replace(gain, W=W, omega=gain.omega * k, rates=(gain.rates[0] * k, gain.rates[1] * k),
-                   observer_limit=gain.observer_limit / k, floor=False)
+def _round(x: float) -> float:
+    return float(f"{x:.{DIGITS}g}")
+
+
+def ladder(start: float, floor: float = MIN_SAMPLE_TIME) -> list[float]:
+    """Round sample times (1, 2, 2.5, 4, 5 x 10^k) from ``start`` [s] down to ``floor``, longest first."""
+    out, k = [], math.floor(math.log10(start)) + 1
+    while 5.0 * 10.0 ** k >= floor * (1 - 1e-12):
+        out += [float(f"{m * 10.0 ** k:.3g}") for m in (5.0, 4.0, 2.5, 2.0, 1.0)]
+        k -= 1
+    return [x for x in out if floor * (1 - 1e-12) <= x <= start * (1 + 1e-12)]
+
+
+class _Shape:
+    """The nominal J at the statement's operating points and Jp_bar at the stated mass."""
+
+    def __init__(self, d, rng: PayloadRange, W0, K0) -> None:
+        rows = _rows(d, rng)
+        J = rows.form("dobc")[0]["J"]
+        self.Li = np.linalg.inv(np.linalg.cholesky((J + np.swapaxes(J, 1, 2)) / 2))
+        Jp = rng.mass * rows.Jp.mean(axis=0)
+        self.Jp = (Jp + Jp.T) / 2
+        Jm = J.mean(axis=0)
+        self.ratio = (np.diag(Jm) + np.diag(self.Jp)) / np.diag(Jm)
+        self.W0, self.K0 = np.array(W0, dtype=float), np.array(K0, dtype=float)
+
+    def gains(self, rho: float, dt: float) -> tuple[np.ndarray, tuple[float, ...]]:
+        W = np.array([[_round(x) for x in row] for row in self.W0 + rho * self.Jp])
+        K = np.minimum(np.maximum(self.K0, rho * self.ratio), RATE_DT / dt)
+        return (W + W.T) / 2, tuple(_round(x) for x in K)
+
+    def rates(self, W: np.ndarray) -> tuple[float, float]:
+        lam = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", self.Li, W, self.Li))   # eigenvalues of W J^-1
+        return float(lam[:, 0].min()), float(lam[:, -1].max())
+
+    def rate_for(self, dt: float) -> float:
+        """The largest rho [1/s] whose W's fastest rate is within RATE_DT / dt (0: none is)."""
+        top = RATE_DT / dt
+        if self.rates(self.gains(0.0, dt)[0])[1] > top:
+            return 0.0
+        lo, hi = 0.0, 1.0
+        while self.rates(self.gains(hi, dt)[0])[1] <= top:
+            lo, hi = hi, 2 * hi
+        while hi / max(lo, 1e-300) > 1.01:
+            mid = math.sqrt(lo * hi) if lo > 0 else hi / 2
+            lo, hi = (mid, hi) if self.rates(self.gains(mid, dt)[0])[1] <= top else (lo, mid)
+        return lo
 
 
 def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
@@ -76,31 +132,74 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
     """The payload design (module docstring). ``gain``: the nominal starter gain (fitted to its limits),
     ``d`` its Derivation; ``base_k``: the momentum gains it goes with [1/s]; ``restate(gain, K) -> (gain
     refitted to the stated limits of the file with W = gain.W and K, its Derivation)``."""
-    k, tries = 1.0, 0
-    current = gain
-    while True:
-        tries += 1
-        dt = current.sample_time
-        lims = {f: payload_limit(d, f, getattr(current, "observer", "explicit"), dt, rng) for f in OBSERVER_FORMS}
-        held = min(lim.limit for lim in lims.values())
-        K = tuple(x * k for x in base_k)
-        if held >= rng.mass or tries >= TRIES or dt < 2 * MIN_SAMPLE_TIME:
-            return PayloadDesign(k, current, K, lims, held >= rng.mass, tries)
-        short = rng.mass / held if held > 0 else MAX_STEP
-        k *= min(MAX_STEP, max(MIN_STEP, SAFETY * short))
-        candidate, cd = restate(scaled(gain, k), tuple(x * k for x in base_k))
-        if candidate.sample_time < MIN_SAMPLE_TIME:
-            return PayloadDesign(k, current, K, lims, False, tries)
-        current, d = candidate, cd
+    observer = getattr(gain, "observer", "explicit")
+    lims = {f: payload_limit(d, f, observer, gain.sample_time, rng) for f in OBSERVER_FORMS}
+    nominal = PayloadDesign(0.0, gain, tuple(base_k), lims, min(x.limit for x in lims.values()) >= rng.mass, 1)
+    if nominal.holds:
+        return nominal
+    shape = _Shape(d, rng, gain.W, base_k)
+    times = ladder(min(gain.sample_time, getattr(gain, "explicit_time", None) or gain.sample_time))
+    tried: dict[int, PayloadDesign] = {}
+
+    def attempt(i: int, full: bool = False) -> PayloadDesign | None:
+        if i not in tried:
+            dt = times[i]
+            rho = shape.rate_for(dt)
+            if rho <= 0:
+                return None
+            W, K = shape.gains(rho, dt)
+            lo, hi = shape.rates(W)
+            g = replace(gain, W=tuple(tuple(float(x) for x in row) for row in W), rates=(lo, hi), sample_time=dt,
+                        observer_limit=0.9 * 2.0 / hi, momentum_limit=0.9 * 2.0 / max(K), observer="explicit",
+                        explicit_time=None, floor=False, payload_rate=rho)
+            g, dd = restate(g, K)
+            out: dict[str, PayloadLimit] = {}
+            for f in OBSERVER_FORMS:            # the weakest first: a miss stops the others
+                out[f] = payload_limit(dd, f, "explicit", g.sample_time, rng)
+                if out[f].limit < rng.mass:
+                    break
+            holds = len(out) == len(OBSERVER_FORMS) and min(x.limit for x in out.values()) >= rng.mass
+            if not holds and full:
+                out.update({f: payload_limit(dd, f, "explicit", g.sample_time, rng) for f in OBSERVER_FORMS if f not in out})
+            tried[i] = PayloadDesign(rho, g, K, out, holds, 1 + len(tried) + 1)
+        return tried[i]
+
+    last = attempt(len(times) - 1, full=True) if times else None
+    if last is None or not last.holds:
+        best = last if last is not None and last.held() > nominal.held() else nominal
+        return replace(best, tries=1 + len(tried))
+    # The limits grow about linearly with rho (UR10: 5.9, 8.7, 17 kg at rho = 30, 50, 100 1/s): the longest
+    # sample time whose rho reaches SAFETY x the shortest's rho scaled to the range is tried first, then
+    # longer ones while they hold and shorter ones until one does.
+    need = SAFETY * last.rate * rng.mass / max(last.held(), 1e-12)
+    good = len(times) - 1
+    i = next((j for j in range(len(times)) if shape.rate_for(times[j]) >= need), good)
+    step = -1 if (attempt(i) or last).holds else 1
+    while 0 <= i < good:
+        got = attempt(i)
+        if got is not None and got.holds:
+            good = i
+            if step > 0:
+                break
+        elif step < 0:
+            break
+        i += step
+    return replace(tried[good], tries=1 + len(tried))
 
 
 def describe(pd: PayloadDesign, rng: PayloadRange) -> list[str]:
     """Comment lines for the starter file: what the design holds and how it was made."""
     parts = ", ".join(f"{f.upper()} {pd.limits[f].limit:.3g} kg" for f in OBSERVER_FORMS)
+    dt = pd.gain.sample_time
     verdict = (f"holds the whole [payload] range ({rng.mass:g} kg)" if pd.holds else
-               f"does NOT hold the whole [payload] range ({rng.mass:g} kg): {pd.held():.3g} kg at most at this sample "
-               "time; lower the payload, or shorten the sample time below 0.1 ms knowingly")
-    return ["# Designed for [payload] (derive.control.payload.design): W and the momentum gains are the nominal",
-            f"# starter's times {pd.factor:.3g}, the sample time refitted; at sample_time the linearised sampled loop",
-            f"# {verdict} (largest payload, worst centre of mass in the ball: {parts}; 0.9 of the largest stable).",
+               f"does NOT hold the whole [payload] range ({rng.mass:g} kg): {pd.held():.3g} kg at most, at the "
+               f"shortest sample time the design tries ({MIN_SAMPLE_TIME * 1e3:g} ms); lower the payload, or give the "
+               "wrist joints' rotor inertia")
+    how = ("# The nominal starter's W and momentum gains hold it unchanged" if pd.rate == 0 else
+           f"# W = omega Jbar + rho Jp_bar, rho = {pd.rate:.4g} 1/s, Jp_bar the payload's joint-space inertia at "
+           f"{rng.mass:g} kg (mean over the ranges and the ball); K_i raised alike; sample time {dt * 1e3:.3g} ms"
+           + (" (below 0.1 ms: what this payload on this arm's light wrist needs)" if dt < 1e-4 * (1 - 1e-12) else ""))
+    return ["# Designed for [payload] (derive.control.payload.design).", how + ".",
+            f"# At sample_time the linearised sampled loop {verdict}",
+            f"# (largest payload, worst centre of mass in the ball: {parts}; 0.9 of the largest stable).",
             "# The controller's model carries no payload: the observer absorbs it (derive show and check state it)."]

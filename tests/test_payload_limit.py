@@ -147,7 +147,7 @@ def _run(*args, cwd=None):
 
 
 def test_init_payload_designs_for_the_range(tmp_path):
-    """init --payload MASS writes [payload] and scales W, K and the sample time until DOBC, NPID and MOM hold
+    """init --payload MASS writes [payload] and shapes W, K and the sample time until DOBC, NPID and MOM hold
     the range at the worst centre of mass; the nominal starter of the same arm does not hold it."""
     (tmp_path / "dp.urdf").write_text((DATA / "double_pendulum.urdf").read_text())
     plain = _run("init", "dp.urdf", "--out", "plain.toml", cwd=tmp_path)

@@ -59,8 +59,9 @@ def add_arguments(parser) -> None:
                         "the expanded URDF is written beside the arm file")
     parser.add_argument("--payload", metavar="MASS",
                         help="design for payloads from 0 to MASS kg (the vendor's rated payload): writes a [payload] "
-                             "table and scales W, the momentum gains and the sample time until the linearised sampled "
-                             "loop of DOBC, NPID and MOM holds it at the worst centre of mass (derive.control.payload)")
+                             "table and adds the payload's inertia to W and the momentum gains, with the sample time "
+                             "it needs, until the linearised sampled loop of DOBC, NPID and MOM holds it at the worst "
+                             "centre of mass (derive.control.payload)")
     parser.add_argument("--payload-com", metavar="X,Y,Z", default="0,0,0",
                         help="the payload's nominal centre of mass in the tip link's frame [m] (default 0,0,0)")
     parser.add_argument("--payload-radius", metavar="R", default="0.15",

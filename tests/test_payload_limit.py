@@ -163,6 +163,40 @@ def test_init_payload_designs_for_the_range(tmp_path):
     assert check_payload(derive(nominal)).status is Status.REFUTED
     text = (tmp_path / "dp.toml").read_text()
     assert "holds the whole [payload] range" in text and "momentum_gain = [" in text
+    # W = omega Jbar + rho Jp_bar: the nominal W plus a positive semidefinite term (the certificate's
+    # 2 W - J' only grows), rho stated in the file
+    W, W0 = (np.array([[float(x) for x in row] for row in a.controller.W]) for a in (arm, nominal))
+    assert np.linalg.eigvalsh((W - W0 + (W - W0).T) / 2).min() > -1e-3 * np.abs(W).max()
+    assert np.abs(W - W0).max() > 0 and "W = omega Jbar + rho Jp_bar (rho = " in text
+
+
+def test_design_ladder_round_sample_times():
+    """The sample times the payload design tries: round values, longest first, none above the start or below
+    the floor."""
+    from derive.control.payload.design import MIN_SAMPLE_TIME, ladder
+
+    assert ladder(2e-3) == [2e-3, 1e-3, 5e-4, 4e-4, 2.5e-4, 2e-4, 1e-4, 5e-5, 4e-5, 2.5e-5, 2e-5]
+    assert ladder(3e-4) == [2.5e-4, 2e-4, 1e-4, 5e-5, 4e-5, 2.5e-5, 2e-5]
+    assert ladder(1e-5) == [] and min(ladder(1.0)) == MIN_SAMPLE_TIME
+
+
+def test_design_rate_is_the_largest_the_sample_time_allows():
+    """rho of a sample time dt: W = W0 + rho Jp_bar has its fastest observer rate (the eigenvalues of W J^-1
+    over the statement's points) within RATE_DT / dt, and 2 % more rho exceeds it; K_i within it too."""
+    from derive.control.payload.design import RATE_DT, _Shape
+
+    arm = load_arm(DATA / "double_pendulum.toml")
+    d = derive(arm)
+    rng = PayloadRange(mass=4.0, com=(0.0, 0.0, 0.0), com_radius=0.1)
+    W0 = np.array([[float(x) for x in row] for row in arm.controller.W])
+    shape = _Shape(d, rng, W0, (50.0, 50.0))
+    for dt in (1e-3, 1e-4):
+        rho = shape.rate_for(dt)
+        assert rho > 0
+        W, K = shape.gains(rho, dt)
+        assert shape.rates(W)[1] <= RATE_DT / dt * (1 + 1e-9) < shape.rates(shape.gains(1.02 * rho, dt)[0])[1]
+        assert max(K) <= RATE_DT / dt * (1 + 1e-3) and min(K) >= 50.0
+    assert shape.rate_for(1e-3) < shape.rate_for(1e-4)
 
 
 @pytest.mark.parametrize("table,field", [

@@ -134,27 +134,26 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) ->
     gain, _ = choose_gain(starter_text(src, name, notes=notes), out, src.found.chain)
     stated, d = stated_limits(starter_text(src, name, gain=gain, notes=notes), out)
     gain = choose_observer(gain, stated)   # d: the pose, loads and substeps do not depend on the observer step
-    momentum, designed = None, ()
+    momentum, designed, speed_scale = None, (), 1.0
     if payload is not None and payload.mass > 0:
         from derive.control.payload.design import describe, design
         from derive.model.spec import MOMENTUM_GAIN
 
-        def restate(g, K):
-            text = starter_text(src, name, gain=g, notes=notes, momentum=K, payload=payload)
+        def restate(g, K, scale=1.0):
+            text = starter_text(src, name, gain=g, notes=notes, momentum=K, payload=payload, speed_scale=scale)
             limits, dd = stated_limits(text, out)
             return fit_to_limits(g, limits), dd
 
         pd = design(gain, d, (float(MOMENTUM_GAIN),) * src.found.chain.n, payload, restate)
         if pd.rate != 0.0:
-            gain, momentum = pd.gain, pd.momentum_gain
-            _, d = restate(gain, momentum)
+            gain, momentum, d, speed_scale = pd.gain, pd.momentum_gain, pd.derivation, pd.speed_scale
         designed = tuple(describe(pd, payload))
     pose = starter_pose(d)
     loads = starter_loads(d, pose[0] if pose else None)
     substeps = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
     return starter_text(src, name, gain=gain, notes=notes, substeps=substeps if substeps > SimSettings.substeps
                         else None, pose=pose, loads=loads, payload=payload, momentum=momentum,
-                        designed=designed)   # defaults unsaid
+                        designed=designed, speed_scale=speed_scale)   # defaults unsaid
 
 
 def _payload_range(args):

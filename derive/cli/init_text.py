@@ -58,14 +58,15 @@ def _vector(values) -> str:
 
 def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple[str, ...] = (),
                  substeps: int | None = None, pose=None, loads=None, payload=None, momentum=None,
-                 designed: tuple[str, ...] = ()) -> str:
+                 designed: tuple[str, ...] = (), speed_scale: float = 1.0) -> str:
     """The arm file for the chain of ``src`` (derive.cli.init_source.Source; see the module
     docstring), naming ``rel`` (the file's path relative to the arm file; default: ``src.path``).
     ``gain``: the derive.control.starter.StarterGain to write (None: a draft whose W is J's
     scale-free placeholder, for reading the chain back). ``notes``: init's own notes (the
     name's), written before the chain's. ``payload``: the [payload] range to write
     (derive.model.payload.PayloadRange), ``momentum``: the momentum observer's gains K when not the
-    default, ``designed``: the comment lines of the payload design (derive.control.payload.design)."""
+    default, ``designed``: the comment lines of the payload design (derive.control.payload.design),
+    ``speed_scale``: the factor (<= 1) on the velocity limits the payload design chose for the speed box."""
     chain, found, word = src.found.chain, src.found, src.word
     key, base_key, tip_key = src.keys
     n = chain.n
@@ -125,6 +126,10 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
                   "gives no velocity limit")
     else:
         source = f"the {word}'s velocity limits"
+    if speed_scale != 1.0:
+        box = [float(f"{v * speed_scale:.4g}") for v in box]
+        speeds = ", ".join(f"{v:g}" for v in box)
+        source = f"{speed_scale:.3g} x {source}, what the [payload] range needs (see there)"
     lines += [
         "",
         "[controller]",

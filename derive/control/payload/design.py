@@ -33,8 +33,14 @@ largest the bound allows; the file is then restated (the sample time refitted to
 sampled-loop limit derive show states) and the payload limits of DOBC, NPID and MOM computed there.
 The limits grow as the sample time shrinks, so the longest sample time that holds the range is found
 from the shortest sample time's figures: the limits grow about linearly with rho, so the longest
-sample time whose rho reaches the range's need is tried first, then its neighbours. A range no sample time down to MIN_SAMPLE_TIME holds is written with
-the most the design holds, and the file says so.
+sample time whose rho reaches the range's need is tried first, then its neighbours.
+
+A range no sample time down to MIN_SAMPLE_TIME holds on the whole speed box is then tried on a
+smaller one: the largest factor on the velocity limits (SPEED_FLOOR to 1, by bisection) on which the
+shortest sample time's design holds it is written to max_joint_speed, and the file says so, with what
+the whole box held. What limits such an arm (the IRB 120-like) is a slow continuous mode at the box's
+corner, every joint at its velocity limit with the payload off-axis (its gyroscopic coupling); it does
+not move with the sample time or T2. Failing that too, the file says the range is not held.
 
 Nominal payload: none. The inertia ratio the observer must span is (J + J_p) / J whatever payload
 the model carries (the midpoint or the largest only move the span), and a nominal model heavier than
@@ -44,7 +50,7 @@ the empty arm is what a tool changer most often runs.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -56,6 +62,8 @@ OBSERVER_FORMS = ("dobc", "npid", "mom")   # the forms whose payload limit the d
 RATE_DT = 0.81          # fastest observer rate x sample time (the starter's HEADROOM 0.45 x 0.9 x 2)
 MIN_SAMPLE_TIME = 2e-5  # s: the design's shortest sample time (50 kHz); the file states it when below 0.1 ms
 SAFETY = 1.1            # rho is first raised to this x the rho the range needs, scaled from the shortest's
+SPEED_FLOOR = 0.1       # the smallest factor on the velocity limits the design tries for the speed box
+SPEED_STEPS = 4         # bisections of that factor (to 1/16 of the interval)
 DIGITS = 4              # significant digits of W's and K's entries as written
 
 
@@ -64,7 +72,8 @@ class PayloadDesign:
     """The designed starter: rho [1/s] (W = omega Jbar + rho Jp_bar; 0: the nominal starter holds the range),
     the gain (derive.control.starter.StarterGain, sample time refitted), the momentum gains K [1/s], the
     payload limits at its sample time (form -> PayloadLimit, forward-Euler step), whether they cover the
-    range, and the designs tried."""
+    range, the designs tried, the designed file's Derivation, and the speed box's factor on the velocity
+    limits (< 1 when the range holds only on a smaller box, with what the full box held)."""
 
     rate: float
     gain: object
@@ -72,6 +81,9 @@ class PayloadDesign:
     limits: dict[str, PayloadLimit]
     holds: bool
     tries: int
+    derivation: object = field(default=None, compare=False)   # the designed file's Derivation
+    speed_scale: float = 1.0   # the factor on the velocity limits of the file's speed box (1: the limits)
+    full_speed: float | None = None   # kg: what the design holds at the full speed box, when it scaled the box
 
     def held(self) -> float:
         """The smallest payload limit of the observer forms [kg]."""
@@ -161,13 +173,15 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
             holds = len(out) == len(OBSERVER_FORMS) and min(x.limit for x in out.values()) >= rng.mass
             if not holds and full:
                 out.update({f: payload_limit(dd, f, "explicit", g.sample_time, rng) for f in OBSERVER_FORMS if f not in out})
-            tried[i] = PayloadDesign(rho, g, K, out, holds, 1 + len(tried) + 1)
+            tried[i] = PayloadDesign(rho, g, K, out, holds, 1 + len(tried) + 1, dd)
         return tried[i]
 
     last = attempt(len(times) - 1, full=True) if times else None
-    if last is None or not last.holds:
-        best = last if last is not None and last.held() > nominal.held() else nominal
-        return replace(best, tries=1 + len(tried))
+    if last is None:
+        return nominal
+    if not last.holds:
+        slower = _slower(last, rng, restate)
+        return replace(slower or last, tries=1 + len(tried) + (slower.tries if slower else 0))
     # The limits grow about linearly with rho (UR10: 5.9, 8.7, 17 kg at rho = 30, 50, 100 1/s): the longest
     # sample time whose rho reaches SAFETY x the shortest's rho scaled to the range is tried first, then
     # longer ones while they hold and shorter ones until one does.
@@ -187,14 +201,51 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
     return replace(tried[good], tries=1 + len(tried))
 
 
+def _slower(pd: PayloadDesign, rng: PayloadRange, restate) -> PayloadDesign | None:
+    """``pd`` (the shortest sample time's design, which does not hold the range) on the largest speed box,
+    SPEED_STEPS bisections of the factor on the velocity limits, on which DOBC, NPID and MOM hold it; None when
+    not even SPEED_FLOOR of the limits does. The observer certificate of W holds on a smaller box too."""
+    def at(scale: float) -> PayloadDesign:
+        g, dd = restate(pd.gain, pd.momentum_gain, scale)
+        out: dict[str, PayloadLimit] = {}
+        for f in OBSERVER_FORMS:            # a miss stops the others (only a design that holds is kept)
+            out[f] = payload_limit(dd, f, "explicit", g.sample_time, rng)
+            if out[f].limit < rng.mass:
+                break
+        holds = len(out) == len(OBSERVER_FORMS) and min(x.limit for x in out.values()) >= rng.mass
+        return PayloadDesign(pd.rate, g, pd.momentum_gain, out, holds, 1, dd, scale, pd.held())
+
+    lo, hi, best, tries = SPEED_FLOOR, 1.0, None, 0
+    first = at(lo)
+    tries += 1
+    if not first.holds:
+        return None
+    best = first
+    for _ in range(SPEED_STEPS):
+        mid = (lo + hi) / 2
+        got = at(mid)
+        tries += 1
+        if got.holds:
+            lo, best = mid, got
+        else:
+            hi = mid
+    return replace(best, tries=tries)
+
+
 def describe(pd: PayloadDesign, rng: PayloadRange) -> list[str]:
     """Comment lines for the starter file: what the design holds and how it was made."""
     parts = ", ".join(f"{f.upper()} {pd.limits[f].limit:.3g} kg" for f in OBSERVER_FORMS)
     dt = pd.gain.sample_time
-    verdict = (f"holds the whole [payload] range ({rng.mass:g} kg)" if pd.holds else
-               f"does NOT hold the whole [payload] range ({rng.mass:g} kg): {pd.held():.3g} kg at most, at the "
-               f"shortest sample time the design tries ({MIN_SAMPLE_TIME * 1e3:g} ms); lower the payload, or give the "
-               "wrist joints' rotor inertia")
+    if pd.holds and pd.speed_scale < 1.0:
+        verdict = (f"holds the whole [payload] range ({rng.mass:g} kg) on a speed box of {pd.speed_scale:.3g} x the "
+                   f"velocity limits (max_joint_speed; on the whole box it holds {pd.full_speed:.3g} kg at most, at the "
+                   f"shortest sample time the design tries, {MIN_SAMPLE_TIME * 1e3:g} ms)")
+    elif pd.holds:
+        verdict = f"holds the whole [payload] range ({rng.mass:g} kg)"
+    else:
+        verdict = (f"does NOT hold the whole [payload] range ({rng.mass:g} kg): {pd.held():.3g} kg at most, at the "
+                   f"shortest sample time the design tries ({MIN_SAMPLE_TIME * 1e3:g} ms) and down to {SPEED_FLOOR:g} x "
+                   "the velocity limits; lower the payload, or give the wrist joints' rotor inertia")
     how = ("# The nominal starter's W and momentum gains hold it unchanged" if pd.rate == 0 else
            f"# W = omega Jbar + rho Jp_bar, rho = {pd.rate:.4g} 1/s, Jp_bar the payload's joint-space inertia at "
            f"{rng.mass:g} kg (mean over the ranges and the ball); K_i raised alike; sample time {dt * 1e3:.3g} ms"

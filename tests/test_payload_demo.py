@@ -8,10 +8,11 @@ The goal asserted: every observer form (DOBC, NPID, MOM) tracks, its largest per
 
 What the starter files say they hold (their [payload] comments, derive.control.payload.design, at the worst
 centre of mass of the 0.15 m ball and the speed box): UR10 DOBC/NPID 14.6 kg, MOM 18.9 kg of 12.5 kg at a
-20 us sample time (it holds the range); IRB 120-like DOBC/NPID 1.35 kg, MOM 2.27 kg of 3 kg at 20 us (it
-does not: its wrist's own inertia is 9e-5 kg m^2, the payload's up to 792 times that). The runs here, at
-0.1 m off the axis and the experiment's speeds, track on both arms at every payload up to the rated one:
-the IRB 120-like's statement is conservative there (README "Designing for a payload range").
+20 us sample time (it holds the range); IRB 120-like DOBC/NPID 3.07 kg, MOM 6.42 kg of 3 kg at 20 us on a
+speed box of 0.269 x its velocity limits (on the whole box 1.35 kg: its wrist's own inertia is 9e-5 kg m^2,
+the payload's up to 792 times that, and the box's corner has a slow gyroscopic mode). The runs here, at
+0.1 m off the axis and the experiment's speeds, track on both arms at every payload up to the rated one
+(docs/guides/payload.md).
 
 The fast variant runs the starter experiment compressed (every joint's pulse starting 1 s after the
 previous one, 8 s in all: every joint moves), about 15-25 s CPU a run, most of it deriving, compiling the

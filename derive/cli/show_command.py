@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import sys
+from pathlib import Path
 
 from derive.cli import show_cache
 
@@ -22,6 +23,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--at", default=None, metavar="theta=...,dtheta=...[,e=...,de=...]",
                         help="print J, G, gravity, B, the free acceleration and the gains at this pose, and the "
                              "initial estimate dhat(0) for the tracking error e(0) and its rate e'(0) (default 0)")
+    parser.add_argument("--json", metavar="FILE", type=Path, default=None,
+                        help="also write the numbers show states (the sample-time limits of every form and observer "
+                             "step, inputs beyond the effort limits, the payload limits) as strict JSON: "
+                             "derive.cli.show_json")
     parser.add_argument("--no-cache", action="store_true",
                         help="derive and print anew, keeping nothing (by default what show printed is kept in the "
                              "user's cache folder, $DERIVE_CACHE_DIR, else platformdirs' user_cache_dir('derive'), "
@@ -33,14 +38,20 @@ def run(args) -> int:
     (derive.cli.show_cache) when the same inputs were shown before, unless ``--no-cache``."""
     encoding = (getattr(sys.stdout, "encoding", None) or "").lower()
     key = None if args.no_cache else show_cache.entry_key(args, encoding)
-    kept = show_cache.load(key) if key is not None else None
+    json_path = getattr(args, "json", None)
+    kept = show_cache.load(key) if key is not None and json_path is None else None
     if kept is not None:
         sys.stderr.write(kept[1])
         sys.stdout.write(kept[0])
         return 0
     err = _Tee(sys.stderr)
     with contextlib.redirect_stderr(err):
-        text = _text(args, encoding)
+        text, d = _text(args, encoding)
+        if json_path is not None:
+            from derive.cli.show_json import render
+            from derive.codegen.emit import write_file
+
+            write_file(json_path, render(d))
     sys.stdout.write(text)
     if key is not None:
         show_cache.save(key, text, err.kept.getvalue())
@@ -61,8 +72,8 @@ class _Tee:
         self.stream.flush()
 
 
-def _text(args, encoding: str) -> str:
-    """What ``derive show`` prints on stdout for ``args``."""
+def _text(args, encoding: str) -> tuple[str, object]:
+    """What ``derive show`` prints on stdout for ``args``, and the Derivation."""
     from derive.cli import load_cli_arm, report_warnings
     from derive.cli.show import render_latex, render_text
     from derive.control.pipeline import derive
@@ -92,4 +103,4 @@ def _text(args, encoding: str) -> str:
 
         if (line := payload_summary(d)) is not None:
             text += textwrap.fill(f"Payload: {line}", 100, subsequent_indent="  ") + "\n"
-    return text
+    return text, d

@@ -144,7 +144,14 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) ->
             limits, dd = stated_limits(text, out)
             return fit_to_limits(g, limits), dd
 
-        pd = design(gain, d, (float(MOMENTUM_GAIN),) * src.found.chain.n, payload, restate)
+        from derive.progress import progress
+
+        with progress(desc=f"designing for {payload.mass:g} kg", unit="design") as bar:
+            def tick(what: str) -> None:
+                bar.set_postfix_str(what)
+                bar.update()
+
+            pd = design(gain, d, (float(MOMENTUM_GAIN),) * src.found.chain.n, payload, restate, tick)
         if pd.rate != 0.0:
             gain, momentum, d, speed_scale = pd.gain, pd.momentum_gain, pd.derivation, pd.speed_scale
         designed = tuple(describe(pd, payload))

@@ -140,10 +140,12 @@ class _Shape:
 
 
 def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
-           restate: Callable[[object, tuple[float, ...]], tuple[object, object]]) -> PayloadDesign:
+           restate: Callable[..., tuple[object, object]], tick: Callable[[str], None] | None = None) -> PayloadDesign:
     """The payload design (module docstring). ``gain``: the nominal starter gain (fitted to its limits),
-    ``d`` its Derivation; ``base_k``: the momentum gains it goes with [1/s]; ``restate(gain, K) -> (gain
-    refitted to the stated limits of the file with W = gain.W and K, its Derivation)``."""
+    ``d`` its Derivation; ``base_k``: the momentum gains it goes with [1/s]; ``restate(gain, K, scale=1.0) ->
+    (gain refitted to the stated limits of the file with W = gain.W, K and the speed box at ``scale`` x the
+    velocity limits, its Derivation)``; ``tick(what)``: called as each design is tried (progress)."""
+    tick = tick or (lambda what: None)
     observer = getattr(gain, "observer", "explicit")
     lims = {f: payload_limit(d, f, observer, gain.sample_time, rng) for f in OBSERVER_FORMS}
     nominal = PayloadDesign(0.0, gain, tuple(base_k), lims, min(x.limit for x in lims.values()) >= rng.mass, 1)
@@ -159,6 +161,7 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
             rho = shape.rate_for(dt)
             if rho <= 0:
                 return None
+            tick(f"sample time {dt * 1e6:g} us, rho {rho:.3g} 1/s")
             W, K = shape.gains(rho, dt)
             lo, hi = shape.rates(W)
             g = replace(gain, W=tuple(tuple(float(x) for x in row) for row in W), rates=(lo, hi), sample_time=dt,
@@ -180,7 +183,7 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
     if last is None:
         return nominal
     if not last.holds:
-        slower = _slower(last, rng, restate)
+        slower = _slower(last, rng, restate, tick)
         return replace(slower or last, tries=1 + len(tried) + (slower.tries if slower else 0))
     # The limits grow about linearly with rho (UR10: 5.9, 8.7, 17 kg at rho = 30, 50, 100 1/s): the longest
     # sample time whose rho reaches SAFETY x the shortest's rho scaled to the range is tried first, then
@@ -201,11 +204,12 @@ def design(gain, d, base_k: tuple[float, ...], rng: PayloadRange,
     return replace(tried[good], tries=1 + len(tried))
 
 
-def _slower(pd: PayloadDesign, rng: PayloadRange, restate) -> PayloadDesign | None:
+def _slower(pd: PayloadDesign, rng: PayloadRange, restate, tick) -> PayloadDesign | None:
     """``pd`` (the shortest sample time's design, which does not hold the range) on the largest speed box,
     SPEED_STEPS bisections of the factor on the velocity limits, on which DOBC, NPID and MOM hold it; None when
     not even SPEED_FLOOR of the limits does. The observer certificate of W holds on a smaller box too."""
     def at(scale: float) -> PayloadDesign:
+        tick(f"speed box {scale:.3g} x the velocity limits")
         g, dd = restate(pd.gain, pd.momentum_gain, scale)
         out: dict[str, PayloadLimit] = {}
         for f in OBSERVER_FORMS:            # a miss stops the others (only a design that holds is kept)

@@ -147,3 +147,34 @@ def test_payload_sweep_is_reproducible_and_tracks(tmp_path: Path) -> None:
     assert one == two, "sweep.json differs between 1 and 2 workers"
     fractions = {f: result["results"][f]["pass_fraction"]["all criteria"] for f in FORMS}
     assert all(x == 1.0 for x in fractions.values()), f"pass fractions of 64 payloads: {fractions}"
+
+
+@pytest.mark.slow
+def test_nominal_starter_loses_the_rated_payload(tmp_path: Path) -> None:
+    """The issue's symptom, and what the design changes: the UR10's starter written without --payload states a
+    payload limit far below 12.5 kg (its `derive show` line), and with 12.5 kg 0.1 m off the flange axis on
+    derive's plant at least one observer form does not track (largest per-joint RMS error >= 0.01 rad or
+    saturation), where the designed file's every form does (test_starter_tracks_the_payload)."""
+    from derive.control.payload.text import stated
+    from derive.control.pipeline import derive
+    from derive.model.payload import PayloadRange
+    from derive.model.spec import load_arm
+
+    urdf = ARMS["ur10"][1]
+    shutil.copy(urdf, tmp_path / urdf.name)
+    nominal = tmp_path / "ur10_nominal.toml"
+    assert main(["init", str(tmp_path / urdf.name), "--base", "base_link", "--tip", "tool0", "--out", str(nominal)]) == 0
+    arm = load_arm(nominal)
+    from dataclasses import replace
+    held = stated(derive(replace(arm, payload=PayloadRange(mass=12.5, com=(0.0, 0.0, 0.0), com_radius=0.15))))
+    assert max(held[f].limit for f in FORMS) < 12.5
+    text = nominal.read_text()
+    path = tmp_path / "loaded.toml"
+    path.write_text(text.replace("\n[simulation]\n", f"\n[simulation]\npayload_mass = 12.5\npayload_com = {OFF_AXIS!r}\n"
+                                 + COMPRESSED))
+    out = tmp_path / "out"
+    code = main(["simulate", str(path), "--controllers", ",".join(FORMS), "--out", str(out), "--duration", "8.0",
+                 "--json", str(out / "metrics.json")])
+    assert code in (0, 1)
+    result = worst(json.loads((out / "metrics.json").read_text()))
+    assert any(not (rms < RMS_MAX and sat == 0.0) for rms, sat in result.values()), result

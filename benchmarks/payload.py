@@ -62,7 +62,7 @@ def run() -> Section:
              _limits(limits))]
     block = table(("arm", "[payload]", "check CPU", "exit", "payload-range", "stated limits (forward Euler)"), rows)
     note = (f"Ratio with / without the statement: {cpu1 / cpu0:.2f} (+{cpu1 - cpu0:.1f} s). The Panda starter's "
-            "nominal W and sample time are kept (not init --payload's scaled design), so exit 1 with payload-range "
+            "nominal W and sample time are kept (not init --payload's design), so exit 1 with payload-range "
             "failing is the expected verdict: the file's controller does not hold 3 kg; the time is what is measured.")
     goals = (Goal(f"derive check with [payload] under {GOAL:g} s CPU for 7 joints", cpu1 < GOAL,
                   f"{cpu1:.1f} s, {cpu1 / cpu0:.2f} x the check without it ({cpu0:.1f} s)"),)

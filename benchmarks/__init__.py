@@ -39,10 +39,15 @@ class Section:
 
     def markdown(self) -> str:
         """The section as Markdown: heading, blocks, then the goals."""
-        parts = [f"## {self.title}", *self.blocks]
-        if self.goals:
-            parts.append("Goals:\n\n" + "\n".join(g.line() for g in self.goals))
-        return "\n\n".join(parts) + "\n"
+        return "\n\n".join([f"## {self.title}", *self._parts()]) + "\n"
+
+    def body(self) -> str:
+        """The section as Markdown without its heading: blocks, then the goals (what the docs show)."""
+        return "\n\n".join(self._parts()) + "\n"
+
+    def _parts(self) -> list[str]:
+        goals = ["Goals:\n\n" + "\n".join(g.line() for g in self.goals)] if self.goals else []
+        return [*self.blocks, *goals]
 
 
 def best_of(fn: Callable[[], T], repeat: int = 3) -> tuple[float, T]:

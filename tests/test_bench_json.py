@@ -4,6 +4,7 @@ snapshot docs/data/bench-run.json covers every section and every page's placehol
 sections run here are fakes, nothing is measured."""
 from __future__ import annotations
 
+import re
 import sys
 import types
 from pathlib import Path
@@ -122,3 +123,16 @@ def test_docs_render_a_missing_section_as_an_error_naming_it():
     with pytest.raises(bench.MissingRun, match="'nosuch'"):
         bench.section({"dynamics": {}}, "nosuch")
 
+
+
+def test_a_pipe_in_a_cell_is_escaped_so_the_table_keeps_its_columns():
+    from benchmarks import table
+
+    text = table(("arm", "||W||_2"), [("chain2", "0.5474")])
+    assert text.splitlines()[0] == "| arm    | \\|\\|W\\|\\|_2 |"
+    assert {len(_cells(line)) for line in text.splitlines()} == {2}
+
+
+def _cells(line: str) -> list[str]:
+    """The cells of a Markdown table row (an escaped ``\\|`` stays in its cell)."""
+    return re.split(r"(?<!\\)\|", line.strip())[1:-1]

@@ -122,6 +122,8 @@ def test_cli_refuses_an_unknown_section(capsys):
 def test_docs_render_a_missing_section_as_an_error_naming_it():
     with pytest.raises(bench.MissingRun, match="'nosuch'"):
         bench.section({"dynamics": {}}, "nosuch")
+    with pytest.raises(bench.MissingRun, match="no section 'nosuch' in docs/data/bench-run.json"):
+        bench.substitute("# A page\n\n<!-- bench-run: nosuch -->\n")
 
 
 
@@ -136,3 +138,25 @@ def test_a_pipe_in_a_cell_is_escaped_so_the_table_keeps_its_columns():
 def _cells(line: str) -> list[str]:
     """The cells of a Markdown table row (an escaped ``\\|`` stays in its cell)."""
     return re.split(r"(?<!\\)\|", line.strip())[1:-1]
+
+
+# sections of benchmarks/__main__.py's SECTIONS left out of the committed snapshot: scaling did not complete
+# on the shared 2-core machine in the time its run had (snake16's generate past 11 min of CPU, then the
+# 20-joint chain; docs/background/benchmarks.md keeps its dated typed table); corpus was still running
+EXCLUDED: tuple[str, ...] = ("scaling", "corpus")
+
+
+def test_committed_snapshot_covers_sections_and_placeholders():
+    text = bench.RUN.read_text(encoding="utf-8")
+    sections = bench.runs()   # strict JSON (derive.jsonio.loads)
+    assert text == dumps(loads(text))   # the layout python -m benchmarks --json writes
+    assert list(sections) == [s for s in bench_main.SECTIONS if s not in EXCLUDED]
+    for name, record in sections.items():
+        assert record["blocks"] and record["seconds"] > 0, name
+        assert record["command"].startswith("python -m benchmarks --json docs/data/bench-run.json"), name
+        for block in record["blocks"]:   # every table keeps its columns on every row
+            if block.startswith("|"):
+                assert len({len(_cells(line)) for line in block.splitlines()}) == 1, (name, block[:200])
+        bench.render_run(record)
+    used = {m for page in examples.pages() for m in bench.RUN_PLACEHOLDER.findall(page.read_text(encoding="utf-8"))}
+    assert used == set(sections), f"sections no page shows or pages naming no section: {sorted(used ^ set(sections))}"

@@ -78,8 +78,13 @@ fuzz: $(STAMP) $(WHEELHOUSE_STAMP) system-deps
 	    $(PY) -m pytest -q -p no:cacheprovider --hypothesis-seed=$(SEED) $(FUZZ_TESTS)
 	DERIVE_REQUIRE_PINNED=1 $(PY) -m pytest -q -p no:cacheprovider -m slow
 
+# Every section of benchmarks/ (`python -m benchmarks`), printed as Markdown and recorded in
+# docs/data/bench-run.json (strict JSON: each section's tables, notes, goals, date and versions).
+# The documentation's benchmark tables are rendered from that file (<!-- bench-run: SECTION -->):
+# committing it is what updates them. `$(PY) -m benchmarks --json docs/data/bench-run.json payload`
+# re-runs one section and replaces only its record.
 bench: $(STAMP)
-	$(PY) -m benchmarks
+	$(PY) -m benchmarks --json docs/data/bench-run.json
 
 # Every arm of tests/data/urdf/corpus (vendor URDFs) through init, show, check, generate (C and
 # Python self-tests), simulate and fmu --plant in a temporary folder, each command under

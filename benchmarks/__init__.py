@@ -39,10 +39,15 @@ class Section:
 
     def markdown(self) -> str:
         """The section as Markdown: heading, blocks, then the goals."""
-        parts = [f"## {self.title}", *self.blocks]
-        if self.goals:
-            parts.append("Goals:\n\n" + "\n".join(g.line() for g in self.goals))
-        return "\n\n".join(parts) + "\n"
+        return "\n\n".join([f"## {self.title}", *self._parts()]) + "\n"
+
+    def body(self) -> str:
+        """The section as Markdown without its heading: blocks, then the goals (what the docs show)."""
+        return "\n\n".join(self._parts()) + "\n"
+
+    def _parts(self) -> list[str]:
+        goals = ["Goals:\n\n" + "\n".join(g.line() for g in self.goals)] if self.goals else []
+        return [*self.blocks, *goals]
 
 
 def best_of(fn: Callable[[], T], repeat: int = 3) -> tuple[float, T]:
@@ -56,8 +61,9 @@ def best_of(fn: Callable[[], T], repeat: int = 3) -> tuple[float, T]:
 
 
 def table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
-    """A Markdown table; the first column is left-aligned, the others right-aligned."""
-    cells = [[str(h) for h in headers]] + [[str(c) for c in row] for row in rows]
+    """A Markdown table; the first column is left-aligned, the others right-aligned. A ``|`` in a cell is
+    escaped (``\\|``): unescaped, it would split the cell and break the table (``||W||_2``)."""
+    cells = [[_cell(h) for h in headers]] + [[_cell(c) for c in row] for row in rows]
     widths = [max(3, *(len(r[i]) for r in cells)) for i in range(len(headers))]
 
     def line(row: Sequence[str]) -> str:
@@ -67,6 +73,10 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     rule = "| " + " | ".join(("-" * w if i == 0 else "-" * (w - 1) + ":")
                              for i, w in enumerate(widths)) + " |"
     return "\n".join([line(cells[0]), rule] + [line(r) for r in cells[1:]])
+
+
+def _cell(value: object) -> str:
+    return str(value).replace("|", "\\|")
 
 
 def seconds(t: float) -> str:

@@ -6,7 +6,8 @@ the site cannot drift from the code; any problem is a build error (``make docs``
   blocks executed;
 - on_files: the reference pages (commands, arm-file keys, C API) and the committed figures of
   generated/ added to the site;
-- on_page_markdown: ``<!-- bench: NAME -->`` replaced by that table of docs/data/benchmarks.json.
+- on_page_markdown: ``<!-- bench-run: SECTION -->`` replaced by that section of the last ``make bench``
+  run (docs/data/bench-run.json), ``<!-- bench: NAME -->`` by that typed table of docs/data/benchmarks.json.
 """
 from __future__ import annotations
 
@@ -60,5 +61,7 @@ def on_files(files, config):
 def on_page_markdown(markdown: str, page, config, files) -> str:
     try:
         return bench.substitute(markdown)
+    except bench.MissingRun as exc:
+        raise PluginError(f"{page.file.src_uri}: {exc.args[0]}") from exc
     except KeyError as exc:
         raise PluginError(f"{page.file.src_uri}: no benchmark table {exc} in docs/data/benchmarks.json") from exc

@@ -68,7 +68,8 @@ def identified_text(idn: Identification, source_text: str, source: Path, out: Pa
     motors = _motors(doc, n)
     base = 10 * n
     for j in range(n):
-        _set(motors[j], "rotor_inertia", _number(phi[base + j] / gears[j] ** 2))
+        # the estimate holds Ia >= 0 to its solver's tolerance only (Clarabel gave the Panda's -2e-11 kg m^2)
+        _set(motors[j], "rotor_inertia", _number(max(phi[base + j], 0.0) / gears[j] ** 2))
         bv = _number(max(phi[base + n + j] - idn.emf[j], 0.0))
         _set(motors[j] if arm.spatial is not None else doc["link"][j], "viscous_friction", bv)
     if arm.spatial is not None:

@@ -1,7 +1,16 @@
-"""The benchmark tables, rendered from docs/data/benchmarks.json (the figures as measured, cell for
-cell; see its "_about") where a page says ``<!-- bench: NAME -->``, and the default experiment's
-metrics from the committed generated/glasgow_2link/sim/metrics.json where it says
-``<!-- metrics: default experiment -->``."""
+"""The benchmark tables of the documentation, rendered where a page says so:
+
+- ``<!-- bench-run: SECTION -->``: that section of the last ``make bench`` run, from the committed
+  docs/data/bench-run.json (``python -m benchmarks --json``; one record per section), its blocks and
+  goals exactly as ``python -m benchmarks`` printed them, without the section's heading (the page has
+  its own), and a line naming the run's date, machine and versions;
+- ``<!-- bench: NAME -->``: a typed table of docs/data/benchmarks.json (figures from commands other
+  than ``python -m benchmarks``, cell for cell; see its "_about");
+- ``<!-- metrics: default experiment -->``: the default experiment's metrics from the committed
+  generated/glasgow_2link/sim/metrics.json.
+
+A placeholder naming no table or section raises KeyError (:class:`MissingRun` for a section).
+"""
 from __future__ import annotations
 
 import json
@@ -27,10 +36,50 @@ def render(table: dict) -> str:
 
 
 def substitute(markdown: str) -> str:
-    """``markdown`` with every placeholder replaced by its table (KeyError: no such table)."""
+    """``markdown`` with every placeholder replaced by its table (KeyError: no such table; MissingRun,
+    a KeyError: no such section in bench-run.json)."""
     data = tables()
     markdown = METRICS_PLACEHOLDER.sub(lambda m: metrics_table(), markdown)
+    if RUN_PLACEHOLDER.search(markdown):
+        sections = runs()
+        markdown = RUN_PLACEHOLDER.sub(lambda m: render_run(section(sections, m[1])), markdown)
     return PLACEHOLDER.sub(lambda m: render(data[m[1]]), markdown)
+
+
+# -- the sections of `make bench`, from the snapshot `python -m benchmarks --json` writes --
+
+RUN = DATA.parent / "bench-run.json"
+RUN_PLACEHOLDER = re.compile(r"^<!-- bench-run: ([a-z0-9_]+) -->$", re.M)
+
+
+class MissingRun(KeyError):
+    """A ``<!-- bench-run: SECTION -->`` whose section the snapshot does not hold."""
+
+
+def runs(path: Path = RUN) -> dict[str, dict]:
+    """{module: record} of the snapshot (strict JSON, derive.jsonio; ValueError if it is not)."""
+    from derive.jsonio import loads
+
+    return {record["module"]: record for record in loads(path.read_text(encoding="utf-8"))["sections"]}
+
+
+def section(sections: dict[str, dict], name: str) -> dict:
+    """The record of section ``name`` (MissingRun naming it and the sections there are)."""
+    if name not in sections:
+        raise MissingRun(f"no section {name!r} in docs/data/bench-run.json (it holds {', '.join(sections)}; "
+                         f"`python -m benchmarks --json docs/data/bench-run.json {name}` adds it)")
+    return sections[name]
+
+
+def render_run(record: dict) -> str:
+    """A section's record as ``python -m benchmarks`` printed it, without its ``## title`` line, and the
+    line naming the run: date (UTC day), machine, CPUs, Python and SymPy."""
+    from benchmarks import Goal, Section
+
+    printed = Section(record["title"], tuple(record["blocks"]), tuple(Goal(**g) for g in record["goals"]))
+    return (f"{printed.body()}\n*Measured by `make bench` (`python -m benchmarks {record['module']}`) on "
+            f"{record['date'][:10]}, {record['machine']} ({record['cpus']} CPUs), Python {record['python']}, "
+            f"SymPy {record['sympy']}.*")
 
 
 # -- the default experiment's metrics, from the committed metrics.json that `make generate` writes --

@@ -174,7 +174,8 @@ def check_sh(code: str) -> list[str]:
             elif words[2] == "benchmarks":
                 from benchmarks.__main__ import SECTIONS
 
-                for section in words[3:]:
+                sections = words[5:] if words[3:4] == ["--json"] else words[3:]   # [--json PATH] SECTION ...
+                for section in sections:
                     if section not in SECTIONS:
                         problems.append(f"`{shlex.join(words)}`: no benchmark section {section!r}")
         elif words[:2] == ["pip", "install"]:

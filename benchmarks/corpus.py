@@ -117,7 +117,7 @@ def _c_selftests(folder: Path, name: str, timeout: float) -> tuple[bool, str]:
 
 
 _PY_CHECK = r'''
-import importlib.util, sys, numpy as np
+import importlib.util, inspect, sys, numpy as np
 from derive.dynamics.equations import derive_dynamics
 from derive.dynamics.program import lambdify
 from derive.model.spec import load_arm
@@ -141,7 +141,9 @@ for k in range(5):
     assert code == m.OK and np.all(np.isfinite(u)), ("mpc_step", code, u)
     for form, State in (("npid", m.NpidState), ("dobc", m.DobcState), ("mom", m.MomState)):
         state = State()
-        assert getattr(m, form + "_init")(state, inp) == m.OK, form + "_init"
+        init = getattr(m, form + "_init")   # the implicit observer's dobc_init takes the sample time
+        extra = (0.001,) if "dt" in inspect.signature(init).parameters else ()
+        assert init(state, inp, *extra) == m.OK, form + "_init"
         code, u, _ = getattr(m, form + "_step")(state, inp, 0.001)
         assert code == m.OK and np.all(np.isfinite(u)), (form + "_step", code, u)
 print("python self-check: J, G, gravity within 1e-9 at 5 states; mpc, npid, dobc, mom steps OK")

@@ -161,3 +161,11 @@ def test_committed_snapshot_covers_sections_and_placeholders():
         bench.render_run(record)
     used = {m for page in examples.pages() for m in bench.RUN_PLACEHOLDER.findall(page.read_text(encoding="utf-8"))}
     assert used == set(sections), f"sections no page shows or pages naming no section: {sorted(used ^ set(sections))}"
+
+
+def test_rendered_text_keeps_tag_like_words():
+    """A printed '<string>' (a traceback in a corpus cell) is shown, not swallowed as an HTML tag; code spans
+    and comparisons stay as printed."""
+    tag_safe = bench.tag_safe
+    assert tag_safe('File "<string>", line 22') == 'File "&lt;string>", line 22'
+    assert tag_safe("`a <b>` and x < 1 and </i>") == "`a <b>` and x < 1 and &lt;/i>"

@@ -71,13 +71,22 @@ def section(sections: dict[str, dict], name: str) -> dict:
     return sections[name]
 
 
+_CODE_OR_TAG = re.compile(r"(`+)(.*?)\1|<(?=[A-Za-z/!?])", re.S)
+
+
+def tag_safe(markdown: str) -> str:
+    """``markdown`` with every ``<`` that would open an HTML tag (``<string>`` in a traceback a table quotes)
+    written ``&lt;``, outside code spans: the page shows the text as printed."""
+    return _CODE_OR_TAG.sub(lambda m: m.group(0) if m.group(1) else "&lt;", markdown)
+
+
 def render_run(record: dict) -> str:
     """A section's record as ``python -m benchmarks`` printed it, without its ``## title`` line, and the
     line naming the run: date (UTC day), machine, CPUs, Python and SymPy."""
     from benchmarks import Goal, Section
 
     printed = Section(record["title"], tuple(record["blocks"]), tuple(Goal(**g) for g in record["goals"]))
-    return (f"{printed.body()}\n*Measured by `make bench` (`python -m benchmarks {record['module']}`) on "
+    return (f"{tag_safe(printed.body())}\n*Measured by `make bench` (`python -m benchmarks {record['module']}`) on "
             f"{record['date'][:10]}, {record['machine']} ({record['cpus']} CPUs), Python {record['python']}, "
             f"SymPy {record['sympy']}.*")
 

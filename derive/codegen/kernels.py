@@ -150,18 +150,24 @@ def kernel_specs(d: Derivation, mode: ParamsMode, observer: str = "explicit") ->
     A = J + dt_sym * value(W)      # backward Euler: J + dt W
     z0 = times(value(B), dhat0) - value(W) * sp.Matrix(s.dtheta)
     if implicit:
-        xs = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
+        # (J + dt W) x = J xi is solved as x = xi + y, (J + dt W) y = -dt W xi: the same x, and no
+        # symbolic product J xi (with W constant it is n^2 products of J's entries, each a large
+        # expression: SymPy's evaluation of them took over 11 min of a 16-joint chain's generate)
+        ys = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
         Binv = value(B).inv()   # B is diagonal (eq. 12)
-        npid_u = law(d.mpc.u_star_rnea) + Binv * value(W) * sp.Matrix(xs)
-        npid_solves = (LinearSolve(xs, A, law(J * value(npid.xi))),)
-        npid_doc = "u = u* + B^-1 W x, (J + dt W) x = J xi: eq. 34 with W_dt = W (J + dt W)^-1 J"
+        Wv = value(W)
+        xi = law(value(npid.xi))
+        npid_u = law(d.mpc.u_star_rnea) + Binv * Wv * (xi + sp.Matrix(ys))
+        npid_solves = (LinearSolve(ys, A, -dt_sym * (Wv * xi)),)
+        npid_doc = ("u = u* + B^-1 W x, x = xi + y, (J + dt W) y = -dt W xi, so (J + dt W) x = J xi: eq. 34 with "
+                    "W_dt = W (J + dt W)^-1 J")
         # dhat(0) of the sampled form: -B^-1 W_dt C^-1 (e'(0) + K2 e(0)) = -B^-1 W x0 with
         # (J + dt W) x0 = J xi(0), xi(0) = C^-1 (e'(0) + K2 e(0)) (derive.control.npid): the NPID
-        # form's u at the first sample, so both forms give the same u from t = 0
-        x0 = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
-        xi0 = law(J * value(npid.xi).xreplace({v: 0 for v in s.int_e}))
-        init_solves = (LinearSolve(x0, A, xi0),)
-        Wx0 = value(W) * sp.Matrix(x0)
+        # form's u at the first sample, so both forms give the same u from t = 0; x0 = xi(0) + y0 as above
+        y0 = tuple(sp.Symbol(f"xsolve{i + 1}", real=True) for i in range(n))
+        xi0 = law(value(npid.xi).xreplace({v: 0 for v in s.int_e}))
+        init_solves = (LinearSolve(y0, A, -dt_sym * (Wv * xi0)),)
+        Wx0 = Wv * (xi0 + sp.Matrix(y0))
         z0_outputs = (Port("z0", _flat(-Wx0 - value(W) * sp.Matrix(s.dtheta)),
                            "z(0) = B dhat(0) - W theta'(0), dhat(0) = -B^-1 W x0, (J + dt W) x0 = J xi(0)"),
                       Port("u0", _flat(times(Binv, value(d.dynamics.G) + Wx0)),

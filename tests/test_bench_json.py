@@ -140,10 +140,8 @@ def _cells(line: str) -> list[str]:
     return re.split(r"(?<!\\)\|", line.strip())[1:-1]
 
 
-# sections of benchmarks/__main__.py's SECTIONS left out of the committed snapshot: scaling did not complete
-# on the shared 2-core machine in the time its run had (snake16's generate past 11 min of CPU, then the
-# 20-joint chain); docs/background/benchmarks.md keeps its dated typed table
-EXCLUDED: tuple[str, ...] = ("scaling",)
+# sections of benchmarks/__main__.py's SECTIONS left out of the committed snapshot (none: every one ran)
+EXCLUDED: tuple[str, ...] = ()
 
 
 def test_committed_snapshot_covers_sections_and_placeholders():

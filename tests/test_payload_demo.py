@@ -84,26 +84,25 @@ CASES = [pytest.param(arm, fraction, id=f"{arm}-{fraction:g}") for arm in ARMS f
 
 # The demonstration runs in make fuzz (slow): make test holds the statement it rests on to its truth
 # (tests/test_payload_limit.py) and MuJoCo's payload to derive's plant (tests/test_payload_plant.py)
-@pytest.mark.slow
-@pytest.mark.parametrize("plant", ["derive", "mujoco"])
-@pytest.mark.parametrize("arm, fraction", CASES)
-def test_starter_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str) -> None:
-    """The compressed starter experiment: every form tracks (RMS < 0.01 rad, no saturation, exit 0)."""
-    if plant == "mujoco":
-        pytest.importorskip("mujoco")
-    mass = rated(arm, fraction)
-    check(run(tmp_path, arm, plant, mass, COMPRESSED, 8.0), f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m")
+EXPERIMENTS = {   # id: (lines added to [simulation], duration [s] or None: the file's 30 s)
+    "compressed": (COMPRESSED, 8.0),
+    "starter": ("", None),
+}
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("experiment", list(EXPERIMENTS))
 @pytest.mark.parametrize("plant", ["derive", "mujoco"])
 @pytest.mark.parametrize("arm, fraction", CASES)
-def test_starter_experiment_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str) -> None:
-    """The starter experiment as the file states it (30 s): every form tracks."""
+def test_starter_tracks_the_payload(tmp_path: Path, arm: str, fraction: float, plant: str, experiment: str) -> None:
+    """The compressed starter experiment (every joint's pulse 1 s after the previous, 8 s) and the starter
+    experiment as the file states it (30 s): every form tracks (RMS < 0.01 rad, no saturation, exit 0)."""
     if plant == "mujoco":
         pytest.importorskip("mujoco")
     mass = rated(arm, fraction)
-    check(run(tmp_path, arm, plant, mass, "", None), f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m, 30 s")
+    extra, duration = EXPERIMENTS[experiment]
+    check(run(tmp_path, arm, plant, mass, extra, duration),
+          f"{arm}, {plant}'s plant, {mass:g} kg at {OFF_AXIS} m, {experiment} experiment")
 
 
 SWEEP = """

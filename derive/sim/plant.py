@@ -272,7 +272,7 @@ def decay_mode(dynamics, values: dict, s: SimSettings, viscous, coulomb, J=None)
     theta = list(dynamics.sym.theta)
     n = len(theta)
     if J is None:
-        J = np.array(lambdify(theta, [x.xreplace(values) for x in dynamics.J])(*s.initial_theta), dtype=float)
+        J = np.array(lambdify(theta, dag_xreplace(list(dynamics.J), values))(*s.initial_theta), dtype=float)
     damping = np.array([float(terms(a)[1].xreplace(values)) for a in dynamics.chain.actuators])
     damping += np.array(viscous, dtype=float) + np.array(coulomb, dtype=float) / SMOOTH
     rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(n, n), np.diag(damping))).real))

@@ -226,3 +226,12 @@ def test_simulate_stiffest_mode_walks_the_dynamics_dag_not_its_tree(tmp_path, mo
     J = plant.matrices(q, np.zeros_like(q))[0][0]
     damping = plant.viscous + plant.coulomb / 0.01   # the torque-driven arm: no back-EMF
     assert np.isclose(mode["rate"], np.max(np.linalg.eigvals(np.linalg.solve(J, np.diag(damping))).real), rtol=1e-9)
+
+
+def test_the_corpus_decimal_chain_is_the_benchmarks_text():
+    """tests/data/urdf/corpus/snake7_decimal.urdf (make corpus) is benchmarks.chains' 7-joint chain in 4-digit
+    decimal frames, the arm the scaling section measures (issue 33)."""
+    from pathlib import Path
+
+    corpus = Path(__file__).parent / "data" / "urdf" / "corpus"
+    assert (corpus / "snake7_decimal.urdf").read_text(encoding="utf-8") == snake_urdf(7, decimal=True)

@@ -17,7 +17,7 @@ from derive.control.starter import USABLE, StarterGain, choose_observer
 from derive.errors import SpecError
 
 DATA = Path(__file__).parent / "data"
-JACO = DATA / "urdf" / "round4" / "j2s7s300.urdf"
+JACO = DATA / "urdf" / "corpus" / "j2s7s300_standalone.urdf"
 
 
 def _gain(rate_max: float) -> StarterGain:

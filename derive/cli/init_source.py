@@ -24,6 +24,10 @@ from typing import Any
 from derive.errors import DeriveError, SpecError
 
 XACRO_INSTALL = "pip install 'derive[xacro]'"
+# rad: rpy angles at most this far from a multiple of pi/2 (and more than derive.model.rigid.SNAP_TOLERANCE) are
+# the exporter's rounding of it (1.5708: 3.7e-6 rad; 1.571: 2.0e-4 is not taken): the starter writes the
+# [arm] snap_angles that takes them as that multiple (derive.model.rigid.snapping), said in the file
+INIT_SNAP = 1e-4
 _ARG = re.compile(r"([A-Za-z_][A-Za-z0-9_]*):=(.*)\Z", re.S)
 
 
@@ -49,6 +53,7 @@ class Source:
     assumed_gravity: bool = True
     expanded: str | None = None
     xacro: str = ""
+    snap: float | None = None   # [arm] snap_angles the starter writes (INIT_SNAP), None: as written
 
     @property
     def word(self) -> str:
@@ -195,6 +200,7 @@ def _urdf(args, path: Path, shown: str, expanded: str | None = None, xacro: str 
     from derive.model.fields import Reader
     from derive.model.spec import SPATIAL_DOWN, gravity_parameter, unit_direction
     from derive.model.urdf import urdf_chain
+    from derive.model.urdf_elements import snap_suggestion
     from derive.model.urdf_xml import parse_safely
 
     r = Reader()
@@ -209,8 +215,15 @@ def _urdf(args, path: Path, shown: str, expanded: str | None = None, xacro: str 
     found = urdf_chain(r, table, Path("/"), gravity_parameter(Fraction(981, 100)), unit_direction(SPATIAL_DOWN))
     if found is None:
         raise _fail(path, r.problems, (("arm.base_link", "--base"), ("arm.tip_link", "--tip")))
+    snap = None
+    if found.kept_angles and max(found.kept_angles) <= INIT_SNAP:   # pi/2 rounded by an exporter
+        snap = snap_suggestion([("kept", "", "", off) for off in found.kept_angles])
+        found = urdf_chain(r, {**table, "snap_angles": snap}, Path("/"), gravity_parameter(Fraction(981, 100)),
+                           unit_direction(SPATIAL_DOWN))
+        if found is None:
+            raise _fail(path, r.problems, (("arm.base_link", "--base"), ("arm.tip_link", "--tip")))
     return Source("urdf", path, described or shown, robot.name or "", "the URDF's robot name" if robot.name
-                  else "the URDF file's name", base, tip, found, expanded=expanded, xacro=xacro)
+                  else "the URDF file's name", base, tip, found, expanded=expanded, xacro=xacro, snap=snap)
 
 
 def _mjcf(args, path: Path) -> Source:

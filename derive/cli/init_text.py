@@ -56,6 +56,15 @@ def _vector(values) -> str:
     return "[" + ", ".join(repr(float(x)) if x != int(x) else str(int(x)) for x in values) + "]"
 
 
+def _snap_lines(snap: float) -> list[str]:
+    """The [arm] snap_angles line and its comment (derive.cli.init_source.INIT_SNAP)."""
+    line = f"snap_angles = {snap:g}"
+    return [line + " " * max(1, 32 - len(line)) + "# rad: rpy angles this close to a multiple of pi/2 are that multiple",
+            "# (the notes below name them: pi/2 as exporters round it, e.g. 1.5708, 3.7e-06 rad from it); their",
+            "# rotations are then exact and derive check's exact proofs cost several times less. Delete this line",
+            "# to keep them as written"]
+
+
 def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple[str, ...] = (),
                  substeps: int | None = None, pose=None, loads=None, payload=None, momentum=None,
                  designed: tuple[str, ...] = (), speed_scale: float = 1.0) -> str:
@@ -93,7 +102,8 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
         'actuation = "torque"            # u is the motor torque [N m]: B = diag(gear_ratio), no back-EMF',
         "# locked = { joint_name = 0.0 } # hold joints (rad or m); joints off the chain are held at 0",
     ] + ([f"repair_inertia = [{', '.join(map(_string, found.repaired))}]  # their inertias are not "
-          "physical: moved to the nearest physical ones (see the notes below)"] if found.repaired else []) + [
+          "physical: moved to the nearest physical ones (see the notes below)"] if found.repaired else []) + (
+        _snap_lines(src.snap) if getattr(src, "snap", None) is not None else []) + [
         "",
         f"# What reading the {word} did:",
     ]

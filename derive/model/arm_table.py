@@ -19,10 +19,11 @@ from derive.model.singular import unmoved_joint
 ARM_KEYS = {"name": "a lowercase C identifier (the prefix of the generated code)",
             "description": None, "gravity": None, "gravity_direction": None, "actuation": None,
             "urdf": None, "base_link": None, "tip_link": None, "locked": None, "repair_inertia": None,
+            "snap_angles": None,
             "mjcf": None, "base_body": None, "tip_body": None}
 
 
-URDF_ONLY = ("base_link", "tip_link", "repair_inertia")
+URDF_ONLY = ("base_link", "tip_link", "repair_inertia", "snap_angles")
 
 
 MJCF_ONLY = ("base_body", "tip_body")

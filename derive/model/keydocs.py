@@ -98,6 +98,10 @@ TABLES: tuple[Table, ...] = (
                 "joints held at a value (URDF or MJCF arms); off-chain joints default to 0"),
               K("repair_inertia", "", "false", "true, or an array of link names",
                 "move these non-physical URDF inertias to the nearest physical ones"),
+              K("snap_angles", "rad", "1e-08", "1e-08 to 0.001 (URDF)",
+                "rpy angles this close to a multiple of pi/2 are that multiple (the 1.5708 of CAD exporters: "
+                "exact rotations, exact proofs several times cheaper); `derive init` writes it for angles within "
+                "1e-4 rad of one"),
               K("mjcf", "", NONE, "a path relative to the arm file", "take the chain from this MJCF "
                 "(MuJoCo's compiler reads it)"),
               K("base_body", "", REQUIRED + " (MJCF)", "a body of the MJCF", "the chain's base"),

@@ -39,6 +39,9 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from fractions import Fraction
 
 import mpmath
@@ -48,6 +51,9 @@ from derive.model.chain import Body, Transform
 
 SNAP_TOLERANCE = 1e-8    # rad: an angle this close to k pi/2 is k pi/2 exactly
 NEAR_MISS = 1e-3         # rad: an angle this close to k pi/2 but not snapped is reported
+# the tolerance of exact_angle and angle_note while a file is read: SNAP_TOLERANCE, or a URDF arm's
+# [arm] snap_angles (from SNAP_TOLERANCE to NEAR_MISS: the 4-digit pi/2 of CAD exporters, :func:`snapping`)
+_SNAP: ContextVar[float] = ContextVar("snap_tolerance", default=SNAP_TOLERANCE)
 ROTATION_BITS = 60       # integer quaternions and stereographic coordinates to 2^-60
 ROTATION_ERROR = 4e-18   # the stated bound of a rationalised rotation or unit vector (entry-wise)
 _HALF_PI = math.pi / 2
@@ -63,28 +69,49 @@ def rational(x: Fraction | int | float) -> sp.Rational:
     return sp.Rational(x.numerator, x.denominator)
 
 
+def snap_tolerance() -> float:
+    """The snapping tolerance in force [rad]: ``SNAP_TOLERANCE``, or the one :func:`snapping` set."""
+    return _SNAP.get()
+
+
+@contextmanager
+def snapping(tolerance: float | None) -> Iterator[None]:
+    """Inside the block, :func:`exact_angle` snaps angles within ``tolerance`` rad of a multiple of
+    pi/2 (None: ``SNAP_TOLERANCE``). A URDF arm's ``[arm] snap_angles`` (derive.model.urdf): a frame
+    written as 1.5708, as SolidWorks and Onshape exporters write pi/2, is then pi/2 (3.7e-6 rad, 3.7 um at
+    a metre), whose rotation has exact 0 and +-1 entries; kept as written its rotation is dense with
+    120-bit rationals, and the exact proofs of derive check cost 4 to 8 times more (derive.proofs.torus)."""
+    token = _SNAP.set(SNAP_TOLERANCE if tolerance is None else float(tolerance))
+    try:
+        yield
+    finally:
+        _SNAP.reset(token)
+
+
 def exact_angle(x: Fraction | int | float) -> sp.Expr:
-    """An angle in radians, exact: k pi/2 when within ``SNAP_TOLERANCE`` of it,
-    else the exact decimal (its rotation is then made rational, :func:`rational_rotation`)."""
+    """An angle in radians, exact: k pi/2 when within the snapping tolerance of it (``SNAP_TOLERANCE``,
+    or :func:`snapping`'s), else the exact decimal (its rotation is then made rational,
+    :func:`rational_rotation`)."""
     value = float(x)
     k = round(value / _HALF_PI)
-    if abs(value - k * _HALF_PI) <= SNAP_TOLERANCE:
+    if abs(value - k * _HALF_PI) <= _SNAP.get():
         return k * sp.pi / 2
     return rational(x)
 
 
-def angle_note(x: Fraction | int | float) -> tuple[str, str] | None:
-    """('snapped' | 'kept', text) for an angle near a multiple of pi/2, else None: what
-    :func:`exact_angle` did with it, for the chain's notes."""
+def angle_note(x: Fraction | int | float) -> tuple[str, str, float] | None:
+    """('snapped' | 'kept', text, distance [rad]) for an angle near a multiple of pi/2, else None: what
+    :func:`exact_angle` did with it, for the chain's notes (a small angle near 0 only when it was
+    snapped to 0: a deliberate small angle is no near miss)."""
     value = float(x)
     k = round(value / _HALF_PI)
     off = abs(value - k * _HALF_PI)
-    if off == 0.0 or k == 0 or off > NEAR_MISS:
+    if off == 0.0 or off > NEAR_MISS or (k == 0 and off > _SNAP.get()):
         return None
-    target = {1: "pi/2", -1: "-pi/2", 2: "pi", -2: "-pi"}.get(k, f"{k}*pi/2")
-    if off <= SNAP_TOLERANCE:
-        return "snapped", f"{_text(x)} -> {target} ({off:.2g} rad off)"
-    return "kept", f"{_text(x)} ({off:.2g} rad from {target})"
+    target = {0: "0", 1: "pi/2", -1: "-pi/2", 2: "pi", -2: "-pi"}.get(k, f"{k}*pi/2")
+    if off <= _SNAP.get():
+        return "snapped", f"{_text(x)} -> {target} ({off:.2g} rad off)", off
+    return "kept", f"{_text(x)} ({off:.2g} rad from {target})", off
 
 
 def _text(x: Fraction | int | float) -> str:

@@ -8,6 +8,7 @@
     tip_link = "panda_hand_tcp"    # ... to this one
     locked = { panda_finger_joint1 = 0.0 }   # joints held at a value (rad or m)
     repair_inertia = ["link2"]     # or true: non-physical inertias moved to the nearest physical one
+    snap_angles = 1e-05            # rad: rpy angles this close to k pi/2 are k pi/2 (default 1e-08)
 
 Reading (derive.model.urdf_xml): the file is checked by ``defusedxml`` first
 (no entity declarations, no external entities or DTDs: an entity-expansion
@@ -22,7 +23,8 @@ repairs the latter: derive.model.inertia_repair), an ignored element that may
 change the dynamics (``<dynamics><damping>``) a warning every command prints.
 
 Normalisation follows the URDF specification: ``rpy`` is fixed-axis X-Y-Z,
-R = Rz(yaw) Ry(pitch) Rx(roll) (angles within 1e-12 of k pi/2 are exact); an
+R = Rz(yaw) Ry(pitch) Rx(roll) (angles within 1e-08 rad of k pi/2 are k pi/2, or within ``snap_angles``:
+derive.model.rigid.snapping); an
 absent ``<origin>`` is the identity; an absent ``<axis>`` is (1, 0, 0); a
 non-unit axis is normalised (noted), a zero axis of a joint that moves is an
 error; the inertia tensor of ``<inertial>`` is rotated by its origin's rpy as
@@ -54,6 +56,7 @@ Ixz, Iyy, Iyz, Izz), named m1, hx1, ..., Izz1; the kinematics are constants.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from difflib import get_close_matches
 from fractions import Fraction
@@ -65,8 +68,8 @@ import sympy as sp
 from derive.errors import Problem
 from derive.model.chain import Body, Chain, Joint, JointType, Parameter, Transform
 from derive.model.fields import Reader, inline, show, to_fraction
-from derive.model.rigid import (empty_body, exact_angle, merge,
-                                move, rational, tidy)
+from derive.model.rigid import (NEAR_MISS, SNAP_TOLERANCE, empty_body, exact_angle, merge, move, rational, snapping,
+                                tidy)
 from derive.model.urdf_rules import (chain_mimics, check_inertials, held_values, judge_findings, mattering_joints,
                                      moving_links, repair_choice)
 from derive.model.urdf_xml import parse_safely
@@ -85,7 +88,8 @@ class UrdfChain:
     default), the warnings (ignored elements that may change the dynamics of the
     chain: printed by every command), the links whose inertia was repaired, and per
     moving joint the reflected rotor inertia the file gives (an MJCF's ``armature``,
-    the default of motor.rotor_inertia; empty for a URDF, which has none) [kg m^2]."""
+    the default of motor.rotor_inertia; empty for a URDF, which has none) [kg m^2], and how far
+    each rpy angle kept near a multiple of pi/2 is from it [rad] (derive.model.rigid.angle_note)."""
 
     chain: Chain
     damping: tuple[Fraction, ...]
@@ -94,6 +98,7 @@ class UrdfChain:
     warnings: tuple[Problem, ...] = ()
     repaired: tuple[str, ...] = ()
     armature: tuple[Fraction, ...] = ()
+    kept_angles: tuple[float, ...] = ()   # rad: how far each angle near k pi/2 kept as written is from it
 
 
 def _tree(r: Reader, robot: Any) -> dict[str, Any] | None:
@@ -173,7 +178,7 @@ def locked_table(r: Reader, value: Any, kinds: dict[str, str], rotates: dict[str
 
 
 _CHAINS: dict = {}   # urdf_chain's results in this process (a key holds the file's bytes)
-_CHAIN_KEYS = ("urdf", "base_link", "tip_link", "locked", "repair_inertia")
+_CHAIN_KEYS = ("urdf", "base_link", "tip_link", "locked", "repair_inertia", "snap_angles")
 
 
 def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
@@ -184,6 +189,30 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     A chain found without problems is kept for the process, keyed by the file's bytes and
     everything else it was read with: ``derive init`` reads the same URDF three times
     (the chain, the draft it certifies, the file it writes: 0.3 s each for Tiago's tree)."""
+    snap = snap_choice(r, d.get("snap_angles"))
+    if snap is False:
+        return None
+    with snapping(snap):
+        return _cached_chain(r, d, base_dir, gravity, direction)
+
+
+def snap_choice(r: Reader, value: Any) -> float | None | bool:
+    """``[arm] snap_angles`` [rad]: None when absent (SNAP_TOLERANCE), the tolerance, or False after adding
+    the problem: a number from SNAP_TOLERANCE to NEAR_MISS (derive.model.rigid.snapping)."""
+    if value is None:
+        return None
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) \
+        and SNAP_TOLERANCE <= value <= NEAR_MISS
+    if not ok:
+        r.add("arm.snap_angles", f"a number of radians from {SNAP_TOLERANCE:g} to {NEAR_MISS:g}: angles that close "
+              "to a multiple of pi/2 are taken as that multiple (1e-05 takes the 1.5708 of CAD exporters as pi/2)",
+              show(value))
+        return False
+    return float(value)
+
+
+def _cached_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:
+    """:func:`urdf_chain` inside its snapping tolerance, kept for the process (urdf_chain's docstring)."""
     name = d.get("urdf")
     try:
         raw = (Path(base_dir) / name).read_bytes() if isinstance(name, str) and not r.problems else None
@@ -267,7 +296,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     damping: list[Fraction] = []
     friction: list[Fraction | None] = []
     merged, held = [], []
-    log: list[tuple[str, str, str]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
+    log: list[tuple[str, str, str, float]] = []   # angles snapped to k pi/2, or kept near one (derive.model.rigid)
     zero: dict[str, list[str]] = {"velocity": [], "effort": []}   # <limit> keys of 0: no limit
     stack = [(base, -1, Transform.identity())]   # (link, owning moving joint or -1 = base, F_owner <- link)
     tip_name, tip = path[-1].child, None
@@ -323,7 +352,7 @@ def _build(r: Reader, robot: Any, base: str, path: list, on_path: set[str], lock
     chain = Chain(tuple(joints), tuple(symbolic), vector, tuple(params) + (gravity,), tuple(notes),
                   tip=None if tip is None or tip == Transform.identity() else tip)
     return UrdfChain(chain, tuple(damping), tuple(_joint_field(j.name, "<dynamics damping>") for j in joints),
-                     tuple(friction))
+                     tuple(friction), kept_angles=tuple(off for kind, _, _, off in log if kind == "kept"))
 
 
 def body_parameters(bodies: list[Body], members: list[list[str]], joints: list[Joint], what: str = "urdf link"

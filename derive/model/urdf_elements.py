@@ -7,7 +7,7 @@ from typing import Any
 import sympy as sp
 from derive.model.chain import Body, Joint, Limits, Transform
 from derive.model.fields import Reader
-from derive.model.rigid import (SNAP_TOLERANCE, angle_note, axis_angle, body_from_com, empty_body, exact_angle,
+from derive.model.rigid import (NEAR_MISS, angle_note, snap_tolerance, axis_angle, body_from_com, empty_body, exact_angle,
                                 rational, rational_unit, rpy)
 
 
@@ -29,7 +29,7 @@ def _angles(values: Any, where: str, log: list[tuple[str, str, str]] | None) -> 
     out = []
     for x in values or (0, 0, 0):
         if log is not None and (note := angle_note(x)) is not None:
-            log.append((*note, where))
+            log.append((note[0], note[1], where, note[2]))
         out.append(exact_angle(x))
     return out
 
@@ -134,16 +134,30 @@ def _zero_limit_notes(zero: dict[str, list[str]], notes: list[str]) -> None:
                          f"no {key} limit (the same in every command)")
 
 
-def angle_notes(log: list[tuple[str, str, str]]) -> list[str]:
-    """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept."""
+def snap_suggestion(log: list[tuple[str, str, str, float]]) -> float:
+    """The ``[arm] snap_angles`` [rad] that takes every near miss of ``log`` as its multiple of pi/2: the
+    1-2-5 value at or above the farthest (NEAR_MISS at most; the tolerance in force when none is kept)."""
+    kept = [off for kind, _, _, off in log if kind == "kept"]
+    if not kept:
+        return snap_tolerance()
+    return next((v for v in (m * 10.0 ** e for e in range(-8, -2) for m in (1, 2, 5)) if v >= max(kept)), NEAR_MISS)
+
+
+def angle_notes(log: list[tuple[str, str, str, float]]) -> list[str]:
+    """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept (with
+    the ``[arm] snap_angles`` that would take them: the 1-2-5 value at or above the farthest, derive.model.rigid)."""
+    tol = snap_tolerance()
+    suggest = snap_suggestion(log)
     out = []
-    for kind, head in (("snapped", f"angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 snapped to it "
+    for kind, head in (("snapped", f"angles within {tol:g} rad of a multiple of pi/2 snapped to it "
                                    "(exact 0 and +-1 in their rotations)"),
-                       ("kept", f"angles near a multiple of pi/2 but more than {SNAP_TOLERANCE:g} rad from it, kept "
-                                "as written (their rotations are the nearest rational rotations, within 4e-18; "
-                                "write the full double, e.g. 1.5707963267948966, if pi/2 is meant)")):
+                       ("kept", f"angles near a multiple of pi/2 but more than {tol:g} rad from it, kept "
+                                "as written (their rotations are the nearest rational rotations, within 4e-18, "
+                                "dense: derive check's exact proofs cost several times more); if pi/2 is meant, "
+                                "write the full double (1.5707963267948966) or set snap_angles = "
+                                f"{suggest:g} under [arm]")):
         seen: dict[str, list[str]] = {}
-        for k, text, where in log:
+        for k, text, where, _ in log:
             if k == kind:
                 seen.setdefault(text, []).append(where)
         if seen:

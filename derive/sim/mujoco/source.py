@@ -114,9 +114,10 @@ def _tree(field: str, shown: str, raw: bytes):
         raise DeriveError(f"{field}: expected well-formed XML (an MJCF or a URDF), got {shown!r}: {exc}") from None
 
 
-def _strip_urdf(root, repaired: dict[str, tuple] | None = None) -> list[str]:
+def _strip_urdf(root, repaired: dict[str, tuple] | None = None, tolerance: float = SNAP_TOLERANCE) -> list[str]:
     """Remove what MuJoCo does not need from a URDF tree (module docstring); say what. ``repaired``:
-    link -> the six entries (ixx, ixy, ixz, iyy, iyz, izz) derive repaired it to."""
+    link -> the six entries (ixx, ixy, ixz, iyy, iyz, izz) derive repaired it to; ``tolerance``: the
+    arm's snapping tolerance (``[arm] snap_angles``, derive.model.rigid.snapping)."""
     from xml.etree.ElementTree import SubElement
 
     removed: dict[str, int] = {}
@@ -134,10 +135,10 @@ def _strip_urdf(root, repaired: dict[str, tuple] | None = None) -> list[str]:
     for limit in root.findall("joint/limit"):
         for key in ("lower", "upper"):
             limit.attrib.pop(key, None)
-    snapped = _snap_angles(root)
+    snapped = _snap_angles(root, tolerance)
     inertias = _inertias(root, repaired or {})
     SubElement(SubElement(root, "mujoco"), "compiler", COMPILER)
-    notes = [f"rpy angles within {SNAP_TOLERANCE:g} rad of a multiple of pi/2 given to MuJoCo as that multiple, as "
+    notes = [f"rpy angles within {tolerance:g} rad of a multiple of pi/2 given to MuJoCo as that multiple, as "
              f"derive reads them (derive.model.rigid): {snapped}"] if snapped else []
     notes += inertias
     if not removed:
@@ -185,9 +186,9 @@ def _inertias(root, repaired: dict[str, tuple]) -> list[str]:
     return notes
 
 
-def _snap_angles(root) -> str:
+def _snap_angles(root, tolerance: float = SNAP_TOLERANCE) -> str:
     """Write every ``<origin rpy>`` angle of the joints and inertials that derive snaps to a
-    multiple k pi/2 (derive.model.rigid.exact_angle: within SNAP_TOLERANCE) as k pi/2 in double;
+    multiple k pi/2 (derive.model.rigid.exact_angle: within ``tolerance``) as k pi/2 in double;
     return what changed ("" when nothing), e.g. "1.57079632679 -> pi/2 (4 times)"."""
     changed: dict[str, int] = {}
     for origin in [*root.findall("joint/origin"), *root.findall("link/inertial/origin")]:
@@ -200,7 +201,7 @@ def _snap_angles(root) -> str:
         for x in values:
             k = round(x / (math.pi / 2))
             off = abs(x - k * math.pi / 2)
-            if 0.0 < off <= SNAP_TOLERANCE:
+            if 0.0 < off <= tolerance:
                 target = {0: "0", 1: "pi/2", -1: "-pi/2", 2: "pi", -2: "-pi"}.get(k, f"{k}*pi/2")
                 changed[f"{x!r} -> {target}"] = changed.get(f"{x!r} -> {target}", 0) + 1
                 x = k * (math.pi / 2)
@@ -231,7 +232,8 @@ def load_source(arm) -> MujocoSource:
     chain = arm.spatial
     repaired = dict(chain.repaired) if chain is not None else {}
     if root.tag == "robot":
-        notes = _strip_urdf(root, repaired)
+        snap = table.get("snap_angles")   # validated by derive.model.urdf.snap_choice
+        notes = _strip_urdf(root, repaired, SNAP_TOLERANCE if snap is None else float(snap))
         kind = "urdf"
     elif root.tag == "mujoco":
         if next(root.iter("include"), None) is not None:

@@ -1,21 +1,27 @@
 """Issue 34 item 1: the smooth Coulomb law tau_c tanh(theta'/eps) with a per-joint width eps
 (``[simulation] coulomb_smoothing``): its validation, every plant applying it (the Python plant and
 the compiled loop: tests/test_compiled_loop.py; MuJoCo's: tests/test_mujoco_plant.py; the plant FMU
-here)."""
+here), and ``derive init`` widening a light joint's eps so that its starter needs at most 8 RK4
+substeps (the xArm6's 92 took 134 s CPU to simulate)."""
 from __future__ import annotations
 
 import re
+import shutil
 import zipfile
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import derive
+from derive.cli import main
 from derive.errors import SpecError
 from derive.model.simspec import COULOMB_SMOOTHING, parse_simulation
 from derive.model.spec import resolve_arm_path
 from derive.sim.plant import Plant, stiffest_mode, true_plant
+
+URDF = Path(__file__).parent / "data" / "urdf"
 
 BAD = [
     ("coulomb_smoothing = 0.0", "0.0"),
@@ -119,3 +125,49 @@ def test_issue34_plant_fmu_exposes_the_widths_with_min_0_rejects_0_and_applies_t
     for widths in ((0.2, 0.05), (0.01, 0.5)):
         np.testing.assert_allclose(fmu_run(widths), derive_run(widths), rtol=0, atol=1e-12, err_msg=str(widths))
     assert np.max(np.abs(derive_run((0.2, 0.05)) - derive_run((0.01, 0.5)))) > 1e-6
+
+
+def _init(tmp_path: Path, name: str, *options: str) -> Path:
+    urdf = tmp_path / Path(name).name
+    shutil.copy(URDF / name, urdf)
+    assert main(["init", str(urdf), *options]) == 0
+    return urdf.with_suffix(".toml")
+
+
+def test_issue34_init_widens_the_xarm6_wrists_coulomb_law_to_at_most_8_substeps_and_simulate_runs(tmp_path,
+                                                                                                    capsys):
+    """The xArm6's <dynamics friction="1"> on every joint: at eps = 0.01 its light wrist needs 92 RK4
+    substeps at 0.2 ms; init widens the joints that make it so to round widths, writes why and how to
+    have the sharp law back, and the file loads, is stable as written and simulates."""
+    from derive.cli.init_numbers import MAX_SUBSTEPS
+
+    path = _init(tmp_path, "corpus/xarm6.urdf", "--base", "world", "--tip", "link6", "--repair-inertia")
+    text = path.read_text()
+    arm = derive.load_arm(path)
+    s = arm.simulation
+    assert s.coulomb_friction == (1.0,) * 6 and s.sample_time == 0.0002
+    assert s.substeps <= MAX_SUBSTEPS and any(w > 0.01 for w in s.coulomb_smoothing)
+    assert all(f"{w:.0e}"[0] in "125" and float(f"{w:.0e}") == w for w in s.coulomb_smoothing)   # the 1-2-5 series
+    sharp = int(re.search(r"coulomb_smoothing = 0\.01 and substeps = (\d+)\.", text).group(1))
+    assert sharp > MAX_SUBSTEPS
+    for i, w in enumerate(s.coulomb_smoothing):
+        if w != 0.01:
+            assert f"'joint{i + 1}' 0.01 -> {w:g} rad/s" in text
+    assert "Simscape's Rotational Friction block" in text
+    d = derive.derive(arm)
+    assert stiffest_mode(d, s)["stable"]
+    assert stiffest_mode(d, replace(s, coulomb_smoothing=(0.01,) * 6))["substeps"] == sharp
+    narrower = [replace(s, coulomb_smoothing=tuple(0.01 if j == i else w for j, w in enumerate(s.coulomb_smoothing)))
+                for i, w in enumerate(s.coulomb_smoothing) if w != 0.01]
+    assert all(stiffest_mode(d, n)["substeps"] > MAX_SUBSTEPS for n in narrower)   # each widening is needed
+    capsys.readouterr()
+    assert main(["simulate", str(path), "--controllers", "npid", "--duration", "0.3", "--out",
+                 str(tmp_path / "sim")]) == 0
+    assert "stiffest mode" not in capsys.readouterr().err
+
+
+def test_issue34_init_writes_no_widening_for_the_ur5(tmp_path):
+    path = _init(tmp_path, "ur5.urdf", "--base", "base_link", "--tip", "tool0")
+    text = path.read_text()
+    assert "coulomb_smoothing" not in text and not re.search(r"^substeps", text, flags=re.M)
+    assert derive.load_arm(path).simulation.coulomb_smoothing == (0.01,) * 6

@@ -171,3 +171,13 @@ def test_issue34_init_writes_no_widening_for_the_ur5(tmp_path):
     text = path.read_text()
     assert "coulomb_smoothing" not in text and not re.search(r"^substeps", text, flags=re.M)
     assert derive.load_arm(path).simulation.coulomb_smoothing == (0.01,) * 6
+
+
+def test_issue34_a_sweeps_worst_file_states_the_widths_and_reads_back_the_same():
+    from derive.cli.sweep import simulation_table
+    from derive.model.simspec import SimSettings, default_settings
+
+    s = replace(default_settings(3), coulomb_smoothing=(0.01, 0.2, 0.5))
+    assert simulation_table(s)["coulomb_smoothing"] == [0.01, 0.2, 0.5]
+    assert parse_simulation(simulation_table(s), 3) == (s, [])
+    assert "coulomb_smoothing" not in simulation_table(SimSettings())   # () is eps = 0.01 each: left unsaid

@@ -66,7 +66,7 @@ def choose_gain(draft: str, out: Path, chain):
 
 MAX_SUBSTEPS = 8   # RK4 steps per sample a starter accepts before it widens a joint's smooth Coulomb law: the
 # plant's integration is most of derive simulate's CPU, which grows with the substeps (the xArm6's starter: 92 took
-# 134-168 s CPU, 6 took 21 s); 8, twice the default 4, aims at issue 34 item 1, every corpus arm's starter
+# 134-181 s CPU, 6 took 21-25 s); 8, twice the default 4, aims at issue 34 item 1, every corpus arm's starter
 # simulated in < 30 s CPU
 WIDEST = 1.0       # rad/s (m/s prismatic): the widest eps the starter writes; wider, the law is viscous friction
 # over the experiment's speeds rather than Coulomb's

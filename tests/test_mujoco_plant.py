@@ -34,6 +34,7 @@ reported by ``compare``, not asserted.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -161,3 +162,31 @@ def test_rk4_stability_is_the_condition_of_the_agreement(tmp_path):
     gap = {k: compare([mj.run(d, loop, x, "npid")], [DerivedPlant().run(d, loop, x, "npid")], {})["max_theta_difference"]
            for k, x in (("coarse", s), ("fine", fine))}
     assert gap["coarse"] > 100 * TOL and gap["fine"] <= TOL, gap
+
+
+def test_issue34_mujoco_applies_the_coulomb_smoothing_widths_as_derives_plant_does(tmp_path):
+    """Issue 34 item 1: the double pendulum's 0.05 N m of smooth Coulomb friction, at 4 steps per sample
+    unstable with eps = 0.01 rad/s (the test above), is stable with eps = [0.1, 0.2]; MuJoCo's loop
+    (compiled and stepped from Python) takes the widths from [simulation] coulomb_smoothing, as derive's
+    plant does, so the two agree within TOL, and the widths change the run."""
+    from derive.sim.plant import stiffest_mode
+
+    arm = load_arm(arm_copy(tmp_path, "double_pendulum", {"substeps": 4, "duration": 2.0,
+                                                           "coulomb_friction": [0.05, 0.05],
+                                                           "coulomb_smoothing": [0.1, 0.2]}))
+    d = derive(arm)
+    s = arm.simulation
+    assert s.coulomb_smoothing == (0.1, 0.2) and stiffest_mode(d, s)["stable"]
+    mj = select(arm, "mujoco", "off")
+    loop = build(d, sources=(mj, DerivedPlant()))
+    a, b = mj.run(d, loop, s, "npid"), DerivedPlant().run(d, loop, s, "npid")
+    assert compare([a], [b], {})["max_theta_difference"] <= TOL
+    stepped, plant = mj.stepped(d, s), DerivedPlant().stepped(d, s)
+    for p in (stepped, plant):
+        p.reset(s.initial_theta, 1)
+        for _ in range(200):
+            p.step(np.array([[0.5, -0.3]]), s.sample_time, s.substeps)
+    np.testing.assert_allclose(stepped.theta, plant.theta, rtol=0, atol=TOL)
+    sharp = mj.run(d, loop, replace(s, coulomb_smoothing=(0.01, 0.01), substeps=stiffest_mode(
+        d, replace(s, coulomb_smoothing=(0.01, 0.01)))["substeps"]), "npid")
+    assert np.max(np.abs(sharp.theta - a.theta)) > 1e-6

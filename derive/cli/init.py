@@ -157,10 +157,11 @@ def _numbers(src, name: str, notes: tuple[str, ...], out: Path, payload=None) ->
         designed = tuple(describe(pd, payload))
     pose = starter_pose(d)
     loads = starter_loads(d, pose[0] if pose else None)
-    substeps = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
-    return starter_text(src, name, gain=gain, notes=notes, substeps=substeps if substeps > SimSettings.substeps
-                        else None, pose=pose, loads=loads, payload=payload, momentum=momentum,
-                        designed=designed, speed_scale=speed_scale)   # defaults unsaid
+    plan = rk4_substeps(d, gain.sample_time, pose[0] if pose else None, loads.get("coulomb_friction"))
+    substeps = plan.substeps if plan.substeps > SimSettings.substeps else None
+    return starter_text(src, name, gain=gain, notes=notes, substeps=substeps, pose=pose, loads=loads, payload=payload,
+                        momentum=momentum, designed=designed, speed_scale=speed_scale,
+                        widening=plan if plan.widened else None)   # defaults unsaid
 
 
 def _payload_range(args):

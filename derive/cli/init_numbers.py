@@ -4,6 +4,7 @@ the sample time (derive.control.starter), the sampled loop's limits for the file
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 from derive.errors import DeriveError
@@ -63,23 +64,97 @@ def choose_gain(draft: str, out: Path, chain):
     return starter_gain(model, box), dyn
 
 
-def rk4_substeps(d, sample_time: float, initial_theta=None, coulomb=None) -> int:
+MAX_SUBSTEPS = 8   # RK4 steps per sample a starter accepts before it widens a joint's smooth Coulomb law: the
+# plant's integration is most of derive simulate's CPU, which grows with the substeps (the xArm6's starter: 92 took
+# 134-181 s CPU, 6 took 21-25 s); 8, twice the default 4, aims at issue 34 item 1, every corpus arm's starter
+# simulated in < 30 s CPU
+WIDEST = 1.0       # rad/s (m/s prismatic): the widest eps the starter writes; wider, the law is viscous friction
+# over the experiment's speeds rather than Coulomb's
+
+
+def round_widths(start: float):
+    """The 1-2-5 series above ``start`` (0.01: 0.02, 0.05, 0.1, 0.2, ...) up to WIDEST."""
+    k = math.floor(math.log10(start) + 1e-9)
+    while True:
+        for m in (1, 2, 5):
+            w = float(f"{m}e{k}")
+            if w > WIDEST * (1 + 1e-12):
+                return
+            if w > start * (1 + 1e-9):
+                yield w
+        k += 1
+
+
+@dataclass(frozen=True)
+class Widening:
+    """The RK4 substeps of a starter's plant and the widths eps [rad/s; m/s prismatic] of its smooth
+    Coulomb law tau_c tanh(theta'/eps) (:func:`rk4_substeps`); ``sharp``: the substeps the default
+    width (derive.model.simspec.COULOMB_SMOOTHING) needs."""
+
+    substeps: int
+    widths: tuple[float, ...]
+    sharp: int
+
+    @property
+    def widened(self) -> tuple[int, ...]:
+        """The joints (0-based) whose width is not the default."""
+        from derive.model.simspec import COULOMB_SMOOTHING
+
+        return tuple(i for i, w in enumerate(self.widths) if w != COULOMB_SMOOTHING)
+
+
+def rk4_substeps(d, sample_time: float, initial_theta=None, coulomb=None) -> Widening:
     """The RK4 steps per sample the simulation of derivation ``d``'s arm file needs at its nominal
     parameters and ``sample_time`` [s] (derive.sim.plant.decay_mode: the stiffest mode at the initial
-    pose, a light joint's URDF friction as the smooth Coulomb law's slope included), at least its own."""
+    pose, a light joint's URDF friction as the smooth Coulomb law's slope tau_c / eps included), at least
+    its own, and the widths eps that keep them at most MAX_SUBSTEPS.
+
+    When the default eps = 0.01 rad/s needs more, joints are widened one step of the 1-2-5 series at a
+    time (:func:`round_widths`, at most WIDEST), each time the joint whose step lowers the stiffest
+    rate most, until the substeps are at most MAX_SUBSTEPS (or no step lowers them); then each widened
+    joint is narrowed back as far as the substeps stay so: the smallest round widths that do. This is the
+    regularised Coulomb friction of a velocity threshold, the practice of Simscape's Rotational Friction
+    block (its "Coulomb friction velocity threshold", default 0.1 rad/s): below eps the friction acts as
+    a viscous damper of slope tau_c / eps, above it as Coulomb's tau_c sign(theta')."""
     from dataclasses import replace
 
     import numpy as np
 
     from derive.control.sampling.grid import mass_function
+    from derive.model.simspec import coulomb_widths
     from derive.sim.plant import decay_mode
 
     s = replace(d.arm.simulation, sample_time=sample_time,
                 **({"initial_theta": tuple(initial_theta)} if initial_theta is not None else {}),
                 **({"coulomb_friction": tuple(coulomb)} if coulomb is not None else {}))
     J = mass_function(d)(np.array([s.initial_theta], dtype=float))[0]
-    return decay_mode(d.dynamics, dict(d.dynamics.values), s, s.viscous_friction, s.coulomb_friction,
-                      J=J)["substeps"]
+
+    def mode(widths) -> dict:
+        return decay_mode(d.dynamics, dict(d.dynamics.values), replace(s, coulomb_smoothing=tuple(widths)),
+                          s.viscous_friction, s.coulomb_friction, J=J)
+
+    widths = list(coulomb_widths(s, d.n))
+    best = mode(widths)
+    sharp = best["substeps"]
+    while best["substeps"] > MAX_SUBSTEPS:
+        trials = []
+        for i, c in enumerate(s.coulomb_friction):
+            wider = next(round_widths(widths[i]), None)
+            if c > 0 and wider is not None:
+                trials.append((mode(widths[:i] + [wider] + widths[i + 1:]), i, wider))
+        trials = [t for t in trials if t[0]["rate"] < best["rate"] * (1 - 1e-9)]
+        if not trials:
+            break
+        best, i, wider = min(trials, key=lambda t: (t[0]["rate"], t[1]))
+        widths[i] = wider
+    bound, start = max(best["substeps"], MAX_SUBSTEPS), coulomb_widths(s, d.n)
+    for i in range(d.n):   # the narrowest round width of each widened joint that keeps the substeps within bound
+        for narrower in (w for w in (start[i], *round_widths(start[i])) if w < widths[i]):
+            trial = mode(widths[:i] + [narrower] + widths[i + 1:])
+            if trial["substeps"] <= bound:
+                widths[i], best = narrower, trial
+                break
+    return Widening(substeps=best["substeps"], widths=tuple(widths), sharp=sharp)
 
 
 POSE_LOAD = 0.8        # the starter experiment's gravity torques at most this fraction of each effort limit

@@ -67,7 +67,7 @@ def _snap_lines(snap: float) -> list[str]:
 
 def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple[str, ...] = (),
                  substeps: int | None = None, pose=None, loads=None, payload=None, momentum=None,
-                 designed: tuple[str, ...] = (), speed_scale: float = 1.0) -> str:
+                 designed: tuple[str, ...] = (), speed_scale: float = 1.0, widening=None) -> str:
     """The arm file for the chain of ``src`` (derive.cli.init_source.Source; see the module
     docstring), naming ``rel`` (the file's path relative to the arm file; default: ``src.path``).
     ``gain``: the derive.control.starter.StarterGain to write (None: a draft whose W is J's
@@ -75,7 +75,8 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
     name's), written before the chain's. ``payload``: the [payload] range to write
     (derive.model.payload.PayloadRange), ``momentum``: the momentum observer's gains K when not the
     default, ``designed``: the comment lines of the payload design (derive.control.payload.design),
-    ``speed_scale``: the factor (<= 1) on the velocity limits the payload design chose for the speed box."""
+    ``speed_scale``: the factor (<= 1) on the velocity limits the payload design chose for the speed box,
+    ``widening``: the smooth Coulomb law's widths when a joint's were widened (derive.cli.init_numbers.Widening)."""
     chain, found, word = src.found.chain, src.found, src.word
     key, base_key, tip_key = src.keys
     n = chain.n
@@ -194,6 +195,8 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
             + "# RK4 steps per sample: the plant's stiffest mode at the initial pose (the joints' friction",
             "# as a smooth Coulomb law, its slope over the joint inertia) needs h lambda <= 2.785",
         ]
+    if widening is not None:
+        lines += _widening_lines(widening, chain)
     if payload is not None:
         c = ", ".join(_g(x) for x in payload.com)
         lines += ["", "[payload]",
@@ -205,6 +208,33 @@ def starter_text(src, name: str, rel: str | None = None, gain=None, notes: tuple
                   "# inertia = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]  # kg m^2 about the centre of mass "
                   "at mass; default: a solid sphere of 5 cm radius", *designed]
     return "\n".join(lines + [""])
+
+
+def _widening_lines(w, chain) -> list[str]:
+    """The coulomb_smoothing line and why: which joints were widened, from what to what, what the sharp law
+    would cost and how to have it back (derive.cli.init_numbers.rk4_substeps)."""
+    from derive.cli.init_numbers import MAX_SUBSTEPS
+    from derive.model.simspec import COULOMB_SMOOTHING
+
+    def unit(i: int) -> str:
+        return "rad/s" if chain.joints[i].type.rotates else "m/s"
+
+    moved = ", ".join(f"'{chain.joints[i].name}' {COULOMB_SMOOTHING:g} -> {w.widths[i]:g} {unit(i)}" for i in w.widened)
+    eps = f"{COULOMB_SMOOTHING:g}"
+    return [
+        f"coulomb_smoothing = [{', '.join(f'{x:g}' for x in w.widths)}]  # rad/s (m/s prismatic): each joint's "
+        "width eps",
+        "# of the smooth Coulomb law tau_c tanh(theta'/eps), widened where a light joint's heavy friction made the "
+        "plant stiff:",
+        f"#   {moved}.",
+        f"# At eps = {eps} the law's slope tau_c / eps over the joint inertia needs {w.sharp} RK4 substeps per sample",
+        f"# (h lambda <= 2.785): about {w.sharp / max(w.substeps, 1):.3g} times the plant's CPU in derive simulate of "
+        f"the {w.substeps} substeps here.",
+        f"# Each width is the smallest 1-2-5 value that brings them to at most {MAX_SUBSTEPS} (a regularised Coulomb "
+        "law's velocity",
+        "# threshold, as in Simscape's Rotational Friction block, default 0.1 rad/s: derive.cli.init_numbers).",
+        f"# For the sharp law back: coulomb_smoothing = {eps} and substeps = {w.sharp}.",
+    ]
 
 
 def _ms(x: float) -> str:

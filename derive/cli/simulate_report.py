@@ -79,9 +79,10 @@ def metrics_results(traces, settings, unit: str = "V", plant: dict | None = None
 def stiffness_words(stiff: dict, s) -> str:
     """The warning when RK4 at the plant's step is unstable in its stiffest mode (derive.sim.plant.stiffest_mode)."""
     return (f"the plant's stiffest mode decays at {stiff['rate']:.3g} 1/s at the initial pose (damping, back-EMF and "
-            f"the smooth Coulomb friction's slope over the joint inertia): RK4 at h = {s.sample_time / s.substeps:g} s "
-            f"is unstable there (h lambda = {stiff['h_rate']:.3g} > 2.785) and the trajectories are wrong; set "
-            f"[simulation] substeps to at least {stiff['substeps']}")
+            f"the smooth Coulomb friction's slope tau_c / eps over the joint inertia): RK4 at h = "
+            f"{s.sample_time / s.substeps:g} s is unstable there (h lambda = {stiff['h_rate']:.3g} > 2.785) and the "
+            f"trajectories are wrong; set [simulation] substeps to at least {stiff['substeps']} (or widen the light "
+            "joints' coulomb_smoothing eps)")
 
 
 def plant_markdown(plant: dict) -> list[str]:

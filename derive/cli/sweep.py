@@ -46,8 +46,8 @@ def simulation_table(s) -> dict:
     out = {}
     for f in fields(s):
         v = getattr(s, f.name)
-        if f.name == "mujoco_model" and not v:   # the default: the arm's own URDF (--plant mujoco)
-            continue
+        if (f.name == "mujoco_model" and not v) or (f.name == "coulomb_smoothing" and not v):
+            continue                            # the default: the arm's own URDF (--plant mujoco); eps = 0.01 each
         if (f.name == "amplitude" and not v) or (f.name == "amplitude_deg" and s.amplitude):
             continue                            # one of the two: per joint, else amplitude_deg for all
         if (f.name == "payload_mass" and not v) or (f.name == "payload_com" and not (v and s.payload_mass)):

@@ -306,7 +306,7 @@ def plant_variables(n: int, params: tuple[tuple[str, float, str, str], ...],
 def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, sources: tuple[str, ...]) -> PlantView:
     """The view of the plant FMU of the ``[simulation]`` section of ``d``'s arm (derive.fmu.plant)."""
     from derive.fmu.plant import payload_shape_words, plant_kernels, plant_parameters
-    from derive.model.simspec import pulse_amplitudes
+    from derive.model.simspec import coulomb_widths, pulse_amplitudes
     from derive.sim.plant import payload_com
     from derive.sim.start import reference_offset
 
@@ -328,8 +328,11 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
     limit_field = {"voltage": "motor.voltage_limit", "torque": "motor.torque_limit"}.get(
         word, "motor.voltage_limit or motor.torque_limit")
     vectors = (
-        ("coulomb", forces, "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/0.01) (simulation.coulomb_friction)",
+        ("coulomb", forces, "Coulomb friction tau_c of joint {i}, tau_c tanh(theta'/eps) (simulation.coulomb_friction)",
          s.coulomb_friction),
+        ("coulomb_smoothing", tuple("m/s" if p else "rad/s" for p in arm.prismatic),
+         "the width eps > 0 of joint {i}'s smooth Coulomb law tau_c tanh(theta'/eps) (simulation.coulomb_smoothing)",
+         coulomb_widths(s, arm.n)),
         ("viscous", tuple("N s/m" if p else "N m s/rad" for p in arm.prismatic),
          "extra viscous friction of joint {i} (simulation.viscous_friction)", s.viscous_friction),
         ("dist", arm.input_units, "constant input disturbance d of motor {i}, B (u + d) (eq. 12; simulation.disturbance)",
@@ -352,6 +355,7 @@ def plant_view(d, fmi: int, *, token: str, tool: str, sample_time: float, source
     single, rules = fmu_rules(every, {str(sym): f"m->p[{k}]" for k, (sym, _) in enumerate(values)}, "double",
                               bodies=arm.spatial.bodies if arm.spatial is not None else ())
     single["payload_mass"] = ("value >= 0", "0.0", ">= 0")
+    single.update({f"coulomb_smoothing[{i + 1}]": ("value > 0", "0.0", "> 0") for i in range(arm.n)})
     found, units, defaults = plant_variables(arm.n, tuple(params), vectors, scalars, fmi, arm.input_units, single)
     if fmi == 3:
         units = tuple(sorted({*units, fmi_unit("s")}, key=lambda u: u.name))

@@ -3,10 +3,11 @@
 The plant is what ``derive simulate`` integrates, from the same kernels
 (derive.sim.kernels) and the same true plant (derive.sim.plant.true_plant: every
 mismatch of the ``[simulation]`` section applied to the parameter values): the
-arm with Coulomb friction tau_c tanh(theta'/0.01), extra viscous friction b theta',
+arm with Coulomb friction tau_c tanh(theta'/eps) (eps each joint's width, ``[simulation]
+coulomb_smoothing``: the tunable ``coulomb_smoothing[i]``, > 0), extra viscous friction b theta',
 a constant input disturbance d and the amplifier's voltage limits,
 
-    J(theta) theta'' = B (u_a + d) - G(theta, theta') - tau_c tanh(theta'/0.01) - b theta'   (eq. 12)
+    J(theta) theta'' = B (u_a + d) - G(theta, theta') - tau_c tanh(theta'/eps) - b theta'   (eq. 12)
 
 with u_a = u clipped to the limits, together with the reference of section 5.2:
 Gr(s) = 1/(s^2 + 1.8 s + 1) driven by a pulse train added to y_d(0) = yd0 (0, or
@@ -33,8 +34,9 @@ pulse          t, start (n), period, amplitude (n),  r (n): yd0 + amplitude in e
                yd0
 amplifier      u, u_max (n)                          u_a: u clipped where u_max > 0
 reference      f = (y_d, y_d') (2n), r               y_d'' = r - 1.8 y_d' - y_d (derive.sim.kernels)
-rk4            x, f, u_a, d, tau_c, b, r, H, p,      one RK4 substep of length H/substeps (derive.sim.kernels),
-               payload_mass, payload_com (3)         p followed by payload(payload_mass, payload_com)
+smoothing      eps (n)                               ieps = 1/eps (the widths of tau_c tanh(theta'/eps))
+rk4            x, f, u_a, d, tau_c, ieps, b, r, H,   one RK4 substep of length H/substeps (derive.sim.kernels),
+               p, payload_mass, payload_com (3)      p followed by payload(payload_mass, payload_com)
 =============  ====================================  =========================================
 
 (``payload``: payload_mass, payload_com (3) -> the ten parameters of derive.dynamics.payload.NAMES,
@@ -114,12 +116,13 @@ def payload_function(d: Derivation) -> ca.Function:
 
 
 def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int) -> tuple[ca.Function, ...]:
-    """pulse, amplifier, reference and rk4 (module docstring) as CasADi functions;
+    """pulse, amplifier, reference, smoothing and rk4 (module docstring) as CasADi functions;
     reference and the RK4 step are the simulator's own (derive.sim.kernels)."""
     n = d.n
     sym = ca.SX.sym
     x, f = sym("x", 2 * n), sym("f", 2 * n)
-    u, dist, tau_c, visc, r, u_max, start = (sym(k, n) for k in ("u", "d", "tauc", "bx", "r", "u_max", "start"))
+    u, dist, tau_c, ieps, visc, r, u_max, start = (sym(k, n) for k in ("u", "d", "tauc", "ieps", "bx", "r", "u_max",
+                                                                       "start"))
     H, p, t, period, amp = sym("H"), sym("p", len(params)), sym("t"), sym("period"), sym("amplitude", n)
     on = ca.logic_and(start <= t, ca.fmod(t - start, period) < period / 2)
     yd0 = sym("yd0", n)
@@ -129,15 +132,19 @@ def plant_functions(d: Derivation, params: tuple[sp.Symbol, ...], substeps: int)
     amplifier = ca.Function("amplifier", [u, u_max], [clipped], ["u", "u_max"], ["u_a"], {"cse": True})
     step = rk4_function(d, params, payload=True)
     mass, com = sym("payload_mass"), sym("payload_com", 3)
-    x_next, f_next = step(x, f, u, dist, tau_c, visc, r, H / substeps, ca.vertcat(p, payload_function(d)(mass, com)))
-    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, H, p, mass, com], [x_next, f_next],
-                      ["x", "f", "u", "d", "tauc", "bx", "r", "H", "p", "payload_mass", "payload_com"],
+    x_next, f_next = step(x, f, u, dist, tau_c, ieps, visc, r, H / substeps,
+                          ca.vertcat(p, payload_function(d)(mass, com)))
+    rk4 = ca.Function("rk4", [x, f, u, dist, tau_c, ieps, visc, r, H, p, mass, com], [x_next, f_next],
+                      ["x", "f", "u", "d", "tauc", "ieps", "bx", "r", "H", "p", "payload_mass", "payload_com"],
                       ["x_next", "f_next"], {"cse": True})
-    return pulse, amplifier, reference_function(n), rk4
+    eps = sym("eps", n)
+    smoothing = ca.Function("smoothing", [eps], [1 / eps], ["eps"], ["ieps"], {"cse": True})
+    return pulse, amplifier, reference_function(n), smoothing, rk4
 
 
 _DOCS = {"pulse": "pulse train r(t) of section 5.2 added to y_d(0)", "amplifier": "the amplifier's voltage limits",
          "reference": "Gr(s) = 1/(s^2 + 1.8 s + 1): y_d'' from the filter state and r",
+         "smoothing": "1/eps of the widths eps of the smooth Coulomb law tau_c tanh(theta'/eps), as rk4 takes them",
          "rk4": "one classical RK4 substep of plant (with its payload) and reference filter (eq. 12, section 5.2)"}
 
 

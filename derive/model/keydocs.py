@@ -192,7 +192,12 @@ TABLES: tuple[Table, ...] = (
                 "each joint's pulse in its own unit, instead of amplitude_deg (not both)"),
               K("start", "s", "[0, 5, 10, ...]", PER_JOINT + " >= 0", "when each link's pulse train starts"),
               K("coulomb_friction", "N m", "[0.05, 0.01, ...]", PER_JOINT + " >= 0",
-                "smoothed Coulomb friction tau_c tanh(theta'/0.01)"),
+                "smoothed Coulomb friction tau_c tanh(theta'/eps), eps each joint's coulomb_smoothing"),
+              K("coulomb_smoothing", "rad/s (m/s prismatic)", "[0.01, ...]",
+                PER_JOINT + " > 0, or one number > 0 for every joint",
+                "the width eps of the smooth Coulomb law tau_c tanh(theta'/eps): its slope tau_c/eps at rest "
+                "sets the plant's stiffest mode and so the RK4 substeps (derive init widens it on a light joint "
+                "with heavy friction)"),
               K("viscous_friction", "N m s/rad", "[0.01, 0.002, ...]", PER_JOINT + " >= 0",
                 "extra viscous friction the controller does not know"),
               K("payload_scale", "", "1.2", ">= 0", "mass (and inertia) factor of the last link's point masses"),

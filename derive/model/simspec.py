@@ -14,7 +14,10 @@ amplitude_deg       90.0                   pulse amplitude (section 5.2) [deg], 
 amplitude           [amplitude_deg, ...]   pulse amplitude per joint in the joint's unit [rad; m
                                            prismatic], instead of amplitude_deg (not both)
 start               [0, 5, 10, ...]        when each link's pulse train starts [s]
-coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m]
+coulomb_friction    [0.05, 0.01, ...]      Coulomb friction per joint [N m], the smooth law
+                                           tau_c tanh(theta'/eps) (derive.sim.plant)
+coulomb_smoothing   [0.01, ...]            eps of that law per joint [rad/s; m/s prismatic], finite
+                                           > 0: an array of n, or one number for every joint
 viscous_friction    [0.01, 0.002, ...]     extra viscous friction per joint [N m s/rad]
 payload_scale       1.2                    mass factor of the last link's point masses
 payload_mass        0.0                    a rigid payload on the tip [kg], finite >= 0: the plant's
@@ -69,6 +72,7 @@ class SimSettings:
     amplitude: tuple[float, ...] = ()   # per joint [rad, m prismatic]; () = amplitude_deg for every joint
     start: tuple[float, ...] = ()
     coulomb_friction: tuple[float, ...] = ()
+    coulomb_smoothing: tuple[float, ...] = ()   # rad/s (m/s prismatic) per joint; () = COULOMB_SMOOTHING each
     viscous_friction: tuple[float, ...] = ()
     payload_scale: float = 1.2
     payload_mass: float = 0.0        # kg: a rigid payload on the tip link (derive.sim.plant)
@@ -88,6 +92,7 @@ class SimSettings:
     mujoco_contacts: bool = False    # MuJoCo's contacts between an MJCF's primitive geoms (derive.sim.mujoco)
 
 
+COULOMB_SMOOTHING = 0.01   # rad/s (m/s prismatic): the default width eps of tau_c tanh(theta'/eps)
 REFERENCE_STARTS = ("zero", "measured")   # simulation.reference_start (derive.sim.start)
 MAX_PAYLOAD_REACH = 2.0   # m: |payload_com| at most this (a payload 2 m off the flange is a typing error)
 
@@ -98,10 +103,17 @@ def pulse_amplitudes(s: SimSettings, n: int) -> tuple[float, ...]:
     return s.amplitude if s.amplitude else (math.radians(s.amplitude_deg),) * n
 
 
+def coulomb_widths(s: SimSettings, n: int) -> tuple[float, ...]:
+    """Each joint's width eps [rad/s; m/s prismatic] of the smooth Coulomb law tau_c tanh(theta'/eps)
+    (n): ``coulomb_smoothing``, else COULOMB_SMOOTHING for every joint."""
+    return s.coulomb_smoothing if s.coulomb_smoothing else (COULOMB_SMOOTHING,) * n
+
+
 def default_settings(n: int) -> SimSettings:
     """Defaults for an n-joint arm."""
     return SimSettings(start=tuple(5.0 * i for i in range(n)),
                        coulomb_friction=tuple(0.05 if i == 0 else 0.01 for i in range(n)),
+                       coulomb_smoothing=(COULOMB_SMOOTHING,) * n,
                        viscous_friction=tuple(0.01 if i == 0 else 0.002 for i in range(n)),
                        disturbance=tuple(0.3 if i == 0 else 0.1 for i in range(n)), velocity_noise=(0.0,) * n,
                        position_noise=(0.0,) * n, initial_theta=(0.0,) * n, link_mass_scale=(1.0,) * n,
@@ -118,7 +130,7 @@ _VECTORS = {"start": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, "dis
 _POSITIVE = {"link_mass_scale", "torque_constant_scale", "resistance_scale"}  # factors that must stay > 0
 # Every key of a [simulation] table (the reader rejects any other; derive.model.keydocs documents each)
 KEYS = frozenset(_SCALARS) | frozenset(_VECTORS) | {"substeps", "seed", "reference_start", "mujoco_model",
-                                                    "mujoco_contacts", "payload_com"}
+                                                    "mujoco_contacts", "payload_com", "coulomb_smoothing"}
 
 
 def _finite(v: Any) -> bool:
@@ -139,6 +151,17 @@ def _payload_com(v: Any, problems: list[Problem]) -> tuple[float, float, float] 
                                 f"{reach:g} m)"))
         return None
     return tuple(float(x) for x in v)
+
+
+def _coulomb_smoothing(v: Any, n: int, problems: list[Problem]) -> tuple[float, ...] | None:
+    """``coulomb_smoothing``: one finite number > 0 for every joint, or an array of n of them."""
+    values = [v] * n if _finite(v) else v
+    if isinstance(values, list) and len(values) == n and all(_finite(x) and x > 0 for x in values):
+        return tuple(float(x) for x in values)
+    problems.append(Problem("simulation.coulomb_smoothing", f"a finite number > 0 [rad/s; m/s prismatic] for every "
+                            f"joint, or an array of {n} of them: the width eps of tau_c tanh(theta'/eps)",
+                            repr(v)[:60]))
+    return None
 
 
 def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
@@ -205,6 +228,10 @@ def parse_simulation(table: Any, n: int) -> tuple[SimSettings, list[Problem]]:
                                     "to it)", repr(v)[:60]))
         else:
             values["reference_start"] = v
+    if "coulomb_smoothing" in table:
+        widths = _coulomb_smoothing(table["coulomb_smoothing"], n, problems)
+        if widths is not None:
+            values["coulomb_smoothing"] = widths
     if "payload_com" in table:
         com = _payload_com(table["payload_com"], problems)
         if com is not None:

@@ -145,7 +145,7 @@ def load(b: LoopBuild) -> ctypes.CDLL:
     if "derive" in b.plants:
         fn = getattr(lib, f"{b.arm}_sim_run")
         fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, dp, dp, dp, dp,
-                       dp, dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp,
+                       dp, dp, dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp, dp, dp, dp,
                        ctypes.POINTER(ctypes.c_long), dp]
         fn.restype = ctypes.c_int
     _LOADED[b.key] = (tmp, lib)
@@ -180,10 +180,14 @@ def _f64(a) -> np.ndarray:
 
 def run_loop(b: LoopBuild, form: str, protected: bool, values, coulomb, viscous, disturbance, u_clip, r: np.ndarray,
              nq: np.ndarray | None, ndq: np.ndarray | None, alpha: float, x0, state0, dt: float,
-             substeps: int, f0=None) -> RawRun:
+             substeps: int, f0=None, smoothing=None) -> RawRun:
     """One whole run in compiled code (see templates/sim/loop.c.jinja for the order of a sample);
-    ``f0``: the reference filter's start (y_d, y_d'), None: at rest at 0."""
-    plant = [_ptr(_f64(a)) for a in (values, coulomb, viscous, disturbance, u_clip)]
+    ``f0``: the reference filter's start (y_d, y_d'), None: at rest at 0; ``smoothing``: each joint's
+    width eps of the smooth Coulomb law tau_c tanh(theta'/eps) [rad/s], None: derive.sim.plant.SMOOTH."""
+    from derive.sim.plant import SMOOTH
+
+    ieps = 1.0 / _f64([SMOOTH] * b.n if smoothing is None else smoothing)   # the kernel's 1/eps (derive.sim.kernels)
+    plant = [_ptr(_f64(a)) for a in (values, coulomb, ieps, viscous, disturbance, u_clip)]
     return run_entry(b, f"{b.arm}_sim_run", plant, form, protected, r, nq, ndq, alpha, x0, state0, dt, substeps,
                      f0)
 

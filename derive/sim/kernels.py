@@ -5,14 +5,16 @@ reference outputs, as CasADi functions printed to C (derive.codegen.printing).
 All of the simulator's maths is here; the loop template (templates/sim/loop.c.jinja)
 only sequences the kernels and the generated controller's steps.
 
-* accel(theta, theta', u, d, tau_c, b, p) = theta'' with
-  J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta' (eq. 12 plus the
-  plant's extra Coulomb and viscous friction),
+* accel(theta, theta', u, d, tau_c, ieps, b, p) = theta'' with
+  J theta'' = B (u + d) - G - tau_c tanh(theta'/eps) - b theta' (eq. 12 plus the
+  plant's extra Coulomb and viscous friction; eps each joint's width of the smooth
+  Coulomb law, [simulation] coulomb_smoothing, passed as ieps = 1/eps: tanh(ieps theta'),
+  at the default eps = 0.01 the very product 100 theta' the kernel had when the width was a constant),
   J and G of the Derivation in its parameter symbols p (the true plant's values
   at run time), solved numerically (CasADi's linear solve), never J^-1; with a
   payload, J + J_p and G + G_p (derive.dynamics.payload), the payload's ten
   parameters appended to p;
-* rk4(x, f, u, d, tau_c, b, r, h, p) -> (x', f'): one classical RK4 step of length h
+* rk4(x, f, u, d, tau_c, ieps, b, r, h, p) -> (x', f'): one classical RK4 step of length h
   of the plant x = (theta, theta') and the reference filter
   Gr(s) = 1 / (s^2 + 1.8 s + 1) with states f = (y_d, y_d') driven by r (section 5.2);
   u, d and r are held over the step (zero-order hold);
@@ -20,7 +22,7 @@ only sequences the kernels and the generated controller's steps.
   the tachometer filter v' = v + alpha (theta' + n_dq - v) (section 5.1);
 * reference(f, r) -> y_d'' = r - 1.8 y_d' - y_d;
 * reference_rk4(f, r, h) -> f': the RK4 step of the reference filter alone, and
-  friction(dtheta, tauc) -> tau_c tanh(theta'/0.01): what a plant that is not derived
+  friction(dtheta, tauc, eps) -> tau_c tanh(theta'/eps): what a plant that is not derived
   here (MuJoCo's, derive.sim.mujoco) takes from the simulator.
 """
 from __future__ import annotations
@@ -34,7 +36,7 @@ from derive.codegen.casadi_bridge import to_function
 from derive.codegen.kernels import KernelSpec, LinearSolve, Port
 from derive.codegen.printing import print_function
 from derive.control.pipeline import Derivation
-from derive.sim.plant import SMOOTH, payload_terms_of
+from derive.sim.plant import payload_terms_of
 
 GR_DAMPING = 1.8  # Gr(s) = 1 / (s^2 + 1.8 s + 1), section 5.2
 
@@ -63,33 +65,35 @@ def accel_spec(d: Derivation, params: tuple[sp.Symbol, ...] | None = None, paylo
         J, G, params = J + terms.J, G + terms.G, params + terms.symbols
     dist = tuple(sp.Symbol(f"d{i + 1}", real=True) for i in range(n))
     tau_c = tuple(sp.Symbol(f"tauc{i + 1}", real=True) for i in range(n))
+    ieps = tuple(sp.Symbol(f"ieps{i + 1}", positive=True) for i in range(n))   # 1/eps [s/rad]
     visc = tuple(sp.Symbol(f"bx{i + 1}", real=True) for i in range(n))
     y = tuple(sp.Symbol(f"ddtheta{i + 1}", real=True) for i in range(n))
-    friction = sp.Matrix([c * sp.tanh(v / sp.Rational(str(SMOOTH))) + b * v
-                          for c, b, v in zip(tau_c, visc, s.dtheta)])
+    friction = sp.Matrix([c * sp.tanh(k * v) + b * v for c, k, b, v in zip(tau_c, ieps, visc, s.dtheta)])
     rhs = dyn.B * (sp.Matrix(s.u) + sp.Matrix(dist)) - G - friction
     return KernelSpec(
         "accel", (Port("theta", s.theta, "joint angles"), Port("dtheta", s.dtheta, "joint velocities"),
                   Port("u", s.u, "applied voltages"), Port("d", dist, "input disturbance"),
-                  Port("tauc", tau_c, "Coulomb friction"), Port("bx", visc, "extra viscous friction"),
+                  Port("tauc", tau_c, "Coulomb friction"),
+                  Port("ieps", ieps, "reciprocal Coulomb smoothing widths 1/eps"),
+                  Port("bx", visc, "extra viscous friction"),
                   Port("p", params, "plant")),
         (Port("ddtheta", y, "joint accelerations"),),
-        "J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'", (LinearSolve(y, J, rhs),))
+        "J theta'' = B (u + d) - G - tau_c tanh(theta'/eps) - b theta'", (LinearSolve(y, J, rhs),))
 
 
 def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None, payload: bool = False) -> ca.Function:
-    """rk4(x, f, u, d, tauc, bx, r, h, p) -> (x_next, f_next): one classical RK4 step of
+    """rk4(x, f, u, d, tauc, ieps, bx, r, h, p) -> (x_next, f_next): one classical RK4 step of
     length h of plant and reference filter, u, d and r held (see the module docstring);
     ``payload``: p ends with the payload's ten parameters (:func:`accel_spec`)."""
     n = d.n
     F = to_function(accel_spec(d, params, payload))
-    npar = F.size1_in(6)
+    npar = F.size1_in(7)
     x, f = ca.SX.sym("x", 2 * n), ca.SX.sym("f", 2 * n)
-    u, dist, tau_c, visc, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "bx", "r"))
+    u, dist, tau_c, ieps, visc, r = (ca.SX.sym(name, n) for name in ("u", "d", "tauc", "ieps", "bx", "r"))
     h, p = ca.SX.sym("h"), ca.SX.sym("p", npar)
 
     def deriv(xs, fs):
-        acc = F(xs[:n], xs[n:], u, dist, tau_c, visc, p)
+        acc = F(xs[:n], xs[n:], u, dist, tau_c, ieps, visc, p)
         return ca.vertcat(xs[n:], acc), _filter(fs, r)
 
     k1 = deriv(x, f)
@@ -98,8 +102,8 @@ def rk4_function(d: Derivation, params: tuple[sp.Symbol, ...] | None = None, pay
     k4 = deriv(x + h * k3[0], f + h * k3[1])
     x_next = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
     f_next = f + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    return ca.Function("rk4", [x, f, u, dist, tau_c, visc, r, h, p], [x_next, f_next],
-                       ["x", "f", "u", "d", "tauc", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
+    return ca.Function("rk4", [x, f, u, dist, tau_c, ieps, visc, r, h, p], [x_next, f_next],
+                       ["x", "f", "u", "d", "tauc", "ieps", "bx", "r", "h", "p"], ["x_next", "f_next"], {"cse": True})
 
 
 def _filter(f, r):
@@ -121,10 +125,10 @@ def reference_rk4_function(n: int) -> ca.Function:
 
 
 def friction_function(n: int) -> ca.Function:
-    """friction(dtheta, tauc) -> tau_c tanh(theta'/0.01): the plant's smooth Coulomb friction
-    (derive.sim.plant.SMOOTH), as :func:`accel_spec` subtracts it."""
-    v, tau_c = ca.SX.sym("dtheta", n), ca.SX.sym("tauc", n)
-    return ca.Function("friction", [v, tau_c], [tau_c * ca.tanh(v / SMOOTH)], ["dtheta", "tauc"], ["tau"],
+    """friction(dtheta, tauc, eps) -> tau_c tanh(theta'/eps): the plant's smooth Coulomb friction
+    (eps each joint's width, [simulation] coulomb_smoothing), as :func:`accel_spec` subtracts it."""
+    v, tau_c, eps = ca.SX.sym("dtheta", n), ca.SX.sym("tauc", n), ca.SX.sym("eps", n)
+    return ca.Function("friction", [v, tau_c, eps], [tau_c * ca.tanh(v / eps)], ["dtheta", "tauc", "eps"], ["tau"],
                        {"cse": True})
 
 

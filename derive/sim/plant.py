@@ -19,8 +19,11 @@ the tip the controller's model does not have: J_true = J + J_p, G_true = G + G_p
 (derive.dynamics.payload), its ten parameters in F_n (``TruePlant.payload``) after the
 parameter vector (the compiled loop built with ``payload=True``, derive.sim.compiled).
 
-Coulomb friction tau_c tanh(theta'/0.01) and the disturbance d (eq. 12) enter the
-forward dynamics J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta'.
+Coulomb friction tau_c tanh(theta'/eps) and the disturbance d (eq. 12) enter the
+forward dynamics J theta'' = B (u + d) - G - tau_c tanh(theta'/eps) - b theta', eps each
+joint's ``[simulation] coulomb_smoothing`` (default SMOOTH = 0.01 rad/s): a regularised Coulomb
+law whose slope tau_c/eps at rest is the plant's stiffest damping on a light joint
+(:func:`decay_mode`).
 """
 from __future__ import annotations
 
@@ -34,9 +37,9 @@ from derive.control.pipeline import Derivation
 from derive.dynamics.payload import NAMES as PAYLOAD_NAMES, PayloadTerms, payload_terms, sphere_inertia
 from derive.dynamics.program import dag_xreplace, lambdify
 from derive.model.payload import body_values
-from derive.model.simspec import SimSettings
+from derive.model.simspec import COULOMB_SMOOTHING, SimSettings, coulomb_widths
 
-SMOOTH = 0.01  # rad/s: width of the tanh that smooths Coulomb friction
+SMOOTH = COULOMB_SMOOTHING  # rad/s: the default width of the tanh that smooths Coulomb friction
 BODY_UNITS = ("kg", "kg m", "kg m^2")   # the body parameters link_mass_scale multiplies
 
 
@@ -44,7 +47,8 @@ BODY_UNITS = ("kg", "kg m", "kg m^2")   # the body parameters link_mass_scale mu
 class TruePlant:
     """The plant one run integrates: parameter values in the Derivation's order
     (``d.values``), Coulomb friction [N m], extra viscous friction [N m s/rad],
-    disturbance d [V], input limits (inf = none)."""
+    disturbance d [V], input limits (inf = none); ``smoothing``: each joint's width eps
+    [rad/s] of tau_c tanh(theta'/eps), () = SMOOTH for every joint."""
 
     values: tuple[float, ...]
     coulomb: tuple[float, ...]
@@ -53,6 +57,12 @@ class TruePlant:
     u_max: tuple[float, ...]
     changed: dict = field(default_factory=dict, compare=False)  # parameter name -> (arm value, plant value)
     payload: tuple[float, ...] = (0.0,) * 10   # the payload's ten parameters in F_n (derive.dynamics.payload.NAMES)
+    smoothing: tuple[float, ...] = ()   # rad/s (m/s prismatic) per joint; () = SMOOTH each
+
+    @property
+    def widths(self) -> tuple[float, ...]:
+        """Each joint's eps [rad/s] of the smooth Coulomb law tau_c tanh(theta'/eps) (n)."""
+        return self.smoothing if self.smoothing else (SMOOTH,) * len(self.coulomb)
 
     @property
     def has_payload(self) -> bool:
@@ -160,7 +170,7 @@ def true_plant(d: Derivation, s: SimSettings) -> TruePlant:
     u_max = tuple(float(m.input_limit) if m.input_limit else math.inf for m in d.arm.motors)
     return TruePlant(values=tuple(values[sym] for sym, _ in d.values), coulomb=tuple(s.coulomb_friction),
                      viscous=tuple(s.viscous_friction), disturbance=tuple(s.disturbance), u_max=u_max,
-                     changed=changed, payload=payload)
+                     changed=changed, payload=payload, smoothing=coulomb_widths(s, d.n))
 
 
 class Plant:
@@ -187,6 +197,7 @@ class Plant:
         self._p: list[float] = []
         self.B = np.array([float(b.xreplace(rep)) for b in dyn.B.diagonal()], dtype=float)
         self.coulomb = np.array(plant.coulomb)
+        self.smoothing = np.array(plant.widths, dtype=float)
         self.viscous = np.array(plant.viscous)
         self.d = np.array(plant.disturbance)
         self.u_max = np.array(plant.u_max)
@@ -207,9 +218,9 @@ class Plant:
 
     def accel(self, q: np.ndarray, dq: np.ndarray, u: np.ndarray) -> np.ndarray:
         """theta'' at (q, dq) under voltages u, each (runs x n): one plant per row,
-        J theta'' = B (u + d) - G - tau_c tanh(theta'/0.01) - b theta', solved by numpy (LAPACK)."""
+        J theta'' = B (u + d) - G - tau_c tanh(theta'/eps) - b theta', solved by numpy (LAPACK)."""
         J, G = self.matrices(q, dq)
-        rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / SMOOTH) - self.viscous * dq
+        rhs = self.B * (u + self.d) - G - self.coulomb * np.tanh(dq / self.smoothing) - self.viscous * dq
         return np.linalg.solve(J, rhs[..., None])[..., 0]
 
     def reset(self, theta0, rows: int) -> None:
@@ -251,7 +262,8 @@ RK4_REAL_LIMIT = 2.785293563405282   # the classical RK4 is stable for h lambda 
 def stiffest_mode(d: Derivation, s: SimSettings, coulomb=None) -> dict:
     """The fastest decay rate lambda [1/s] of the plant's velocities at the initial pose, the
     largest eigenvalue of J^-1 D with D the damping of each joint (back-EMF, bv, [simulation]
-    viscous_friction and the smooth Coulomb friction's slope tau_c / 0.01 at rest), and h lambda
+    viscous_friction and the smooth Coulomb friction's slope tau_c / eps at rest, eps each joint's
+    coulomb_smoothing), and h lambda
     for the RK4 step h = sample_time / substeps: above RK4_REAL_LIMIT the integration of either
     plant (derive's or MuJoCo's, the same scheme) is unstable in that mode and its trajectory
     wrong; ``substeps`` is then the smallest count that is stable. ``coulomb``: the tau_c [N m]
@@ -274,7 +286,7 @@ def decay_mode(dynamics, values: dict, s: SimSettings, viscous, coulomb, J=None)
     if J is None:
         J = np.array(lambdify(theta, dag_xreplace(list(dynamics.J), values))(*s.initial_theta), dtype=float)
     damping = np.array([float(terms(a)[1].xreplace(values)) for a in dynamics.chain.actuators])
-    damping += np.array(viscous, dtype=float) + np.array(coulomb, dtype=float) / SMOOTH
+    damping += np.array(viscous, dtype=float) + np.array(coulomb, dtype=float) / np.array(coulomb_widths(s, n))
     rate = float(np.max(np.linalg.eigvals(np.linalg.solve(J.reshape(n, n), np.diag(damping))).real))
     h = s.sample_time / s.substeps
     return {"rate": rate, "h_rate": rate * h, "stable": rate * h <= RK4_REAL_LIMIT,

@@ -64,7 +64,7 @@ class PlantSource(Protocol):
     def describe(self, d, s) -> dict: ...
 
     def coulomb(self, d, s) -> np.ndarray:
-        """The smooth Coulomb friction tau_c tanh(theta'/0.01) per joint [N m] the plant applies
+        """The smooth Coulomb friction tau_c tanh(theta'/eps) per joint [N m] the plant applies
         under settings ``s`` (derive.sim.plant.stiffest_mode takes its slope)."""
 
 
@@ -85,13 +85,13 @@ class DerivedPlant:
         return Plant(d, true_plant(d, s))
 
     def describe(self, d, s) -> dict:
-        from derive.sim.plant import true_plant
-
-        from derive.sim.plant import payload_note
+        from derive.sim.plant import SMOOTH, payload_note, true_plant
 
         plant = true_plant(d, s)
+        widths = ("" if all(w == SMOOTH for w in plant.widths) else " (tau_c tanh(theta'/eps), eps = ["
+                  + ", ".join(f"{w:g}" for w in plant.widths) + "] rad/s: [simulation] coulomb_smoothing)")
         out = {"name": "derive", "model": "the arm's own derivation: J theta'' + G = B (u + d) (eq. 11-12) at the "
-               "[simulation] parameter values, plus its Coulomb and viscous friction",
+               f"[simulation] parameter values, plus its Coulomb{widths} and viscous friction",
                "integrator": "RK4", "timestep": s.sample_time / s.substeps, "steps_per_sample": s.substeps,
                "changed": {k: {"arm": a, "plant": b} for k, (a, b) in sorted(plant.changed.items())}}
         if plant.has_payload:

@@ -2,8 +2,8 @@
 generated controllers: MPC alone (eq. 15), DOBC (eq. 27) and NPID (eq. 34).
 
 Plant: the arm's own dynamics with what the controller does not know
-(derive.model.simspec): Coulomb friction (smoothed, tanh(theta'/0.01)), extra viscous
-friction, a heavier tip, a constant input disturbance, optional sensor noise
+(derive.model.simspec): Coulomb friction (smoothed, tanh(theta'/eps), eps each joint's
+coulomb_smoothing), extra viscous friction, a heavier tip, a constant input disturbance, optional sensor noise
 with the tachometer low-pass filter of section 5.1, the motors' voltage limits.
 Integrated with RK4 (``substeps`` per sample) under a zero-order hold on u.
 
@@ -293,7 +293,7 @@ def run_compiled(d: Derivation, loop, plant: TruePlant, s: SimSettings, name: st
 
     def call(form, protected, *rest, f0=None):
         return run_loop(loop, form, protected, values, plant.coulomb, plant.viscous, plant.disturbance,
-                        plant.u_max, *rest, f0=f0)
+                        plant.u_max, *rest, f0=f0, smoothing=plant.widths)
     return run_compiled_with(d, loop, plant.u_max, s, name, call)
 
 

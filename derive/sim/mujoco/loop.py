@@ -26,7 +26,7 @@ from derive.errors import DeriveError
 from derive.sim.mujoco import require
 from derive.sim.mujoco.model import Compiled, build as build_model
 from derive.sim.mujoco.source import MujocoSource
-from derive.sim.plant import SMOOTH, true_plant
+from derive.sim.plant import true_plant
 
 TAG = 1684370025.0   # d->userdata[0] of derive's models (templates/sim/mujoco_loop.c.jinja)
 
@@ -39,7 +39,7 @@ def _argtypes(lib, arm: str):
     if fn.argtypes is None:
         dp, ip = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int)
         fn.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_void_p,
-                       ctypes.c_void_p, ip, ip, dp, dp, dp, dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp,
+                       ctypes.c_void_p, ip, ip, dp, dp, dp, dp, dp, dp, dp, dp, ctypes.c_double, dp, dp, dp, dp, dp, dp,
                        dp, dp, dp, ctypes.POINTER(ctypes.c_long), dp]
         fn.restype = ctypes.c_int
     return fn
@@ -76,7 +76,7 @@ class MujocoPlant:
         data = mj.MjData(c.model)
         _argtypes(load(loop), loop.arm)
         f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
-        arrays = [f64(c.coulomb), f64(plant.disturbance), f64(plant.u_max)]
+        arrays = [f64(c.coulomb), f64(plant.widths), f64(plant.disturbance), f64(plant.u_max)]
         ints = [np.ascontiguousarray(c.qadr, dtype=np.int32), np.ascontiguousarray(c.dadr, dtype=np.int32)]
         args = [ctypes.c_void_p(c.model._address), ctypes.c_void_p(data._address),
                 *(a.ctypes.data_as(ctypes.POINTER(ctypes.c_int)) for a in ints),
@@ -90,7 +90,7 @@ class MujocoPlant:
         """The plant stepped from Python (derive.sim.plants.SteppedPlant)."""
         plant = true_plant(d, s)
         c = self.model(d, s)
-        return MujocoStepped(c, plant.u_max, plant.disturbance, c.coulomb)
+        return MujocoStepped(c, plant.u_max, plant.disturbance, c.coulomb, plant.widths)
 
     def describe(self, d, s) -> dict:
         """What the metrics file says of the plant (derive.sim.mujoco.model)."""
@@ -109,17 +109,18 @@ def _passive(model, data) -> None:
         return
     n = int(u[1])
     adr = u[2:2 + n].astype(int)
-    data.qfrc_passive[adr] -= u[2 + n:2 + 2 * n] * np.tanh(data.qvel[adr] / SMOOTH)
+    data.qfrc_passive[adr] -= u[2 + n:2 + 2 * n] * np.tanh(data.qvel[adr] / u[2 + 2 * n:2 + 3 * n])
 
 
 class MujocoStepped:
     """MuJoCo's plant stepped from Python: one ``MjData`` per row, ``mj_step`` with ctrl = u + d."""
 
-    def __init__(self, compiled: Compiled, u_max, disturbance, coulomb):
+    def __init__(self, compiled: Compiled, u_max, disturbance, coulomb, widths):
         self.c, self.n = compiled, len(compiled.qadr)
         self.u_max = np.asarray(u_max, dtype=float)
         self.d = np.asarray(disturbance, dtype=float)
         self.tauc = np.asarray(coulomb, dtype=float)
+        self.eps = np.asarray(widths, dtype=float)   # rad/s: the smooth law's widths tau_c tanh(theta'/eps)
         self.data: list = []
 
     def reset(self, theta0, rows: int) -> None:
@@ -127,7 +128,7 @@ class MujocoStepped:
         self.data = []
         for _ in range(rows):
             data = mj.MjData(self.c.model)
-            data.userdata[:2 + 2 * self.n] = [TAG, self.n, *self.c.dadr, *self.tauc]
+            data.userdata[:2 + 3 * self.n] = [TAG, self.n, *self.c.dadr, *self.tauc, *self.eps]
             data.qpos[self.c.qadr] = theta0
             self.data.append(data)
 

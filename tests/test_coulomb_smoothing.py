@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import re
 import shutil
-import zipfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -70,61 +69,29 @@ def test_issue34_the_width_sets_the_stiffest_mode_and_the_python_plant_applies_i
 def test_issue34_plant_fmu_exposes_the_widths_with_min_0_rejects_0_and_applies_them(tmp_path):
     """``coulomb_smoothing[i]``: a tunable parameter beside ``coulomb[i]``, min 0 (exclusive: the setter
     refuses 0), and a set width is the one the FMU integrates (derive's Python plant with it, 1e-12)."""
-    from fmpy import read_model_description
-    from fmpy.fmi3 import FMU3Slave
-    from fmpy.validation import validate_fmu
-
-    from derive.fmu import plant_fmu
+    from .fmuplant import built, fmu_run, plant_run
 
     arm = derive.load_arm()
     s = replace(arm.simulation, coulomb_friction=(0.5, 0.3), coulomb_smoothing=(0.2, 0.05))
     d = derive.derive(replace(arm, simulation=s))
-    name, data = plant_fmu(d, 3)
-    path = tmp_path / name
-    path.write_bytes(data)
-    assert validate_fmu(str(path)) == []
-    md = read_model_description(str(path))
-    variables = {v.name: v for v in md.modelVariables}
+    files = built(d, tmp_path)
+    variables = files[1]
     for i, width in ((1, 0.2), (2, 0.05)):
         v = variables[f"coulomb_smoothing[{i}]"]
         assert (v.causality, v.variability, float(v.start), float(v.min), v.unit) == (
             "parameter", "tunable", width, 0.0, "rad/s"), v
         assert "tanh(theta'/eps)" in v.description and f"coulomb[{i}]" in variables
-    vr = {k: v.valueReference for k, v in variables.items()}
-    with zipfile.ZipFile(path) as z:
-        z.extractall(tmp_path / "unzipped")
     steps, u = 300, np.array([1.0, -0.5])
 
-    def fmu_run(widths) -> np.ndarray:
-        fmu = FMU3Slave(guid=md.guid, unzipDirectory=str(tmp_path / "unzipped"),
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="plant")
-        fmu.instantiate()
-        fmu.enterInitializationMode(startTime=0.0)
-        fmu.setFloat64([vr["coulomb_smoothing[1]"], vr["coulomb_smoothing[2]"]], list(widths))
-        fmu.exitInitializationMode()
-        out = []
-        for k in range(steps):
-            fmu.setFloat64([vr["u[1]"], vr["u[2]"]], list(u))
-            fmu.doStep(k * s.sample_time, s.sample_time)
-            out.append(fmu.getFloat64([vr["theta[1]"], vr["theta[2]"]]))
-        with pytest.raises(Exception, match="status 3"):   # a zero width is refused by the setter
-            fmu.setFloat64([vr["coulomb_smoothing[1]"]], [0.0])
-        fmu.terminate()
-        fmu.freeInstance()
-        return np.array(out)
-
-    def derive_run(widths) -> np.ndarray:
-        plant = Plant(d, true_plant(d, replace(s, coulomb_smoothing=tuple(widths))))
-        plant.reset(s.initial_theta, 1)
-        out = []
-        for _ in range(steps):
-            plant.step(u[None, :], s.sample_time, s.substeps)
-            out.append(plant.theta[0].copy())
-        return np.array(out)
+    def runs(widths) -> tuple[np.ndarray, np.ndarray]:
+        start = {"coulomb_smoothing[1]": widths[0], "coulomb_smoothing[2]": widths[1]}
+        return (fmu_run(files, s, steps, u, start, refused={"coulomb_smoothing[1]": 0.0}),
+                plant_run(d, replace(s, coulomb_smoothing=tuple(widths)), steps, u))
 
     for widths in ((0.2, 0.05), (0.01, 0.5)):
-        np.testing.assert_allclose(fmu_run(widths), derive_run(widths), rtol=0, atol=1e-12, err_msg=str(widths))
-    assert np.max(np.abs(derive_run((0.2, 0.05)) - derive_run((0.01, 0.5)))) > 1e-6
+        fmu, plant = runs(widths)
+        np.testing.assert_allclose(fmu, plant, rtol=0, atol=1e-12, err_msg=str(widths))
+    assert np.max(np.abs(runs((0.2, 0.05))[1] - runs((0.01, 0.5))[1])) > 1e-6
 
 
 def _init(tmp_path: Path, name: str, *options: str) -> Path:

@@ -22,7 +22,6 @@ tests/test_sweep.py's (its SWEEP varies both).
 from __future__ import annotations
 
 import re
-import zipfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -217,60 +216,26 @@ def test_eq12_mujoco_with_the_payload_welded_to_the_tip_body_agrees_with_derives
 
 
 def test_plant_fmu_payload_parameters_change_the_trajectory_as_derives_plant_does(tmp_path):
-    from fmpy import read_model_description
-    from fmpy.fmi3 import FMU3Slave
-    from fmpy.validation import validate_fmu
-
-    from derive.fmu import plant_fmu
+    from .fmuplant import built, fmu_run, plant_run
 
     arm = load_arm()
     d = derive.derive(arm)
-    name, data = plant_fmu(d, 3)
-    path = tmp_path / name
-    path.write_bytes(data)
-    assert validate_fmu(str(path)) == []
-    md = read_model_description(str(path))
-    variables = {v.name: v for v in md.modelVariables}
+    files = built(d, tmp_path)
     for key in ("payload_mass", "payload_com[1]", "payload_com[2]", "payload_com[3]"):
-        assert variables[key].causality == "parameter" and variables[key].variability == "tunable", key
-        assert float(variables[key].start) == 0.0, key
-    vr = {k: v.valueReference for k, v in variables.items()}
-    with zipfile.ZipFile(path) as z:
-        z.extractall(tmp_path / "unzipped")
+        assert files[1][key].causality == "parameter" and files[1][key].variability == "tunable", key
+        assert float(files[1][key].start) == 0.0, key
     s, steps, u = arm.simulation, 400, np.array([1.0, -0.5])
 
-    def fmu_run(mass: float, com) -> np.ndarray:
-        fmu = FMU3Slave(guid=md.guid, unzipDirectory=str(tmp_path / "unzipped"),
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="plant")
-        fmu.instantiate()
-        fmu.enterInitializationMode(startTime=0.0)
-        fmu.setFloat64([vr["payload_mass"]], [mass])
-        fmu.setFloat64([vr[f"payload_com[{i}]"] for i in (1, 2, 3)], list(com))
-        fmu.exitInitializationMode()
-        out = []
-        for k in range(steps):
-            fmu.setFloat64([vr["u[1]"], vr["u[2]"]], list(u))
-            fmu.doStep(k * s.sample_time, s.sample_time)
-            out.append(fmu.getFloat64([vr["theta[1]"], vr["theta[2]"]]))
-        if mass == 0.8:
-            with pytest.raises(Exception, match="status 3"):   # a negative mass is refused by the setter
-                fmu.setFloat64([vr["payload_mass"]], [-1.0])
-        fmu.terminate()
-        fmu.freeInstance()
-        return np.array(out)
+    def fmu(mass: float, com, refused=None) -> np.ndarray:
+        start = {"payload_mass": mass, **{f"payload_com[{i}]": c for i, c in zip((1, 2, 3), com)}}
+        return fmu_run(files, s, steps, u, start, refused)
 
-    def derive_run(mass: float, com) -> np.ndarray:
-        plant = Plant(d, true_plant(d, replace(s, payload_mass=mass, payload_com=tuple(com))))
-        plant.reset(s.initial_theta, 1)
-        out = []
-        for _ in range(steps):
-            plant.step(u[None, :], s.sample_time, s.substeps)
-            out.append(plant.theta[0].copy())
-        return np.array(out)
+    def plant(mass: float, com) -> np.ndarray:
+        return plant_run(d, replace(s, payload_mass=mass, payload_com=tuple(com)), steps, u)
 
-    bare, loaded = fmu_run(0.0, (0.0, 0.0, 0.0)), fmu_run(0.8, (0.05, 0.02, 0.0))
-    np.testing.assert_allclose(bare, derive_run(0.0, (0.0, 0.0, 0.0)), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(loaded, derive_run(0.8, (0.05, 0.02, 0.0)), rtol=0, atol=1e-12)
+    bare, loaded = fmu(0.0, (0.0, 0.0, 0.0)), fmu(0.8, (0.05, 0.02, 0.0), refused={"payload_mass": -1.0})
+    np.testing.assert_allclose(bare, plant(0.0, (0.0, 0.0, 0.0)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(loaded, plant(0.8, (0.05, 0.02, 0.0)), rtol=0, atol=1e-12)
     assert np.max(np.abs(loaded - bare)) > 1e-3
 
 

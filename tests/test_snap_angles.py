@@ -101,3 +101,28 @@ def test_mujoco_is_given_the_angles_derive_snaps():
     assert kept == [1.5708] * 3 and said == ""
     snapped, said = angles(5e-6)
     assert snapped == [math.pi / 2] * 3 and "1.5708 -> pi/2 (3 times)" in said
+
+
+def test_dh_snap_angles_takes_a_papers_1_5708_as_pi_over_2(tmp_path, capsys):
+    """[dh] snap_angles: a table written with 1.5708 gives the chain of the same table written "pi/2"; out of
+    range it is one problem naming dh.snap_angles."""
+    def arm(alpha: str, extra: str = "") -> Path:
+        text = "\n".join(['[arm]', 'name = "dh2"', 'actuation = "torque"', 'gravity = 9.81',
+                          '[dh]', 'convention = "standard"', f'table = [[0.3, {alpha}, 0.1, 0], [0.2, 0, 0, 0]]', extra,
+                          '[[body]]', 'mass = 1.0', 'com = [0.1, 0, 0]', '[[body]]', 'mass = 0.5', 'com = [0.1, 0, 0]',
+                          '[[motor]]', 'gear_ratio = 1.0', '[[motor]]', 'gear_ratio = 1.0',
+                          '[controller]', 'T1 = 0.0', 'T2 = 0.2', 'w = [0.5, 0.5]', ''])
+        path = tmp_path / f"dh{len(list(tmp_path.iterdir()))}.toml"
+        path.write_text(text, encoding="utf-8")
+        return path
+
+    exact = load_arm(arm('"pi/2"')).spatial
+    snapped = load_arm(arm("1.5708", "snap_angles = 1e-5")).spatial
+    kept = load_arm(arm("1.5708")).spatial
+    def frames(chain):
+        return [j.origin for j in chain.joints], list(chain.bodies)
+
+    assert frames(snapped) == frames(exact) and frames(kept) != frames(exact)
+    code = main(["show", str(arm("1.5708", "snap_angles = 0.5")), "--no-cache"])
+    err = capsys.readouterr().err
+    assert code == 2 and "dh.snap_angles" in err and "a number of radians from 1e-08 to 0.001" in err, err

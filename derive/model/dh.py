@@ -20,8 +20,10 @@ end of link i; modified: A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i),
 frame i at joint i, and row i holds (a_{i-1}, alpha_{i-1}, d_i, theta_i). The
 joint variable q_i adds to theta_i (revolute) or d_i (prismatic); theta_i and
 d_i in the table are its offsets. An angle is a number of radians (within
-1e-12 of a multiple of pi/2 it is that multiple exactly) or a fraction of pi
-written as text ("pi/2", "-pi/4", "2*pi/3"), which is exact.
+1e-8 rad of a multiple of pi/2 it is that multiple exactly) or a fraction of pi
+written as text ("pi/2", "-pi/4", "2*pi/3"), which is exact; ``snap_angles = 1e-05`` under ``[dh]``
+(rad, 1e-8 to 1e-3) takes the angles that close to a multiple of pi/2 as that multiple (a paper's 1.5708:
+derive.model.rigid.snapping).
 
 In the chain, joint i's frame F_i has z along joint i's axis: the DH frame
 i - 1 turned by theta_i (standard) or the DH frame i (modified). Each body is
@@ -39,11 +41,12 @@ import sympy as sp
 
 from derive.model.chain import Body, Chain, Joint, JointType, Limits, Parameter, Transform
 from derive.model.fields import ANY, NONNEGATIVE, Num, Reader, to_fraction
-from derive.model.rigid import body_from_com, exact_angle, inertia_problem, move, parse_pi, rot_x, rot_z, rotation, tidy, translation
+from derive.model.rigid import (body_from_com, exact_angle, inertia_problem, move, parse_pi, rot_x, rot_z, rotation,
+                                snap_choice, snapping, tidy, translation)
 
 CONVENTIONS = ("standard", "modified")
 DH_KEYS = {"convention": "'standard' or 'modified' (Craig)",
-           "table": "an array of rows [a, alpha, d, theta], one per joint", "joints": None}
+           "table": "an array of rows [a, alpha, d, theta], one per joint", "joints": None, "snap_angles": None}
 BODY_KEYS = {"mass": NONNEGATIVE["kg"].expected, "com": None, "inertia": None}
 ROW = "[a (m), alpha (rad), d (m), theta (rad)]"
 ANGLE = "a finite number of radians or a fraction of pi as text ('pi/2', '-pi/4')"
@@ -163,7 +166,9 @@ def dh_chain(r: Reader, dh: Any, bodies: Any, gravity: Parameter, direction: sp.
     convention = d.get("convention")
     if "convention" in d and convention not in CONVENTIONS:
         r.bad("dh.convention", "'standard' (Denavit-Hartenberg) or 'modified' (Craig)", convention)
-    rows = _rows(r, d) if "table" in d else None
+    snap = snap_choice(r, d.get("snap_angles"), "dh.snap_angles")
+    with snapping(None if snap is False else snap):
+        rows = _rows(r, d) if "table" in d else None
     n = len(rows) if rows else None
     types = _types(r, d.get("joints"), n) if n else []
     if not isinstance(bodies, list) or not all(isinstance(b, dict) for b in bodies):

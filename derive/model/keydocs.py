@@ -134,6 +134,8 @@ TABLES: tuple[Table, ...] = (
                 "a and d in metres, alpha and theta in radians or as \"p*pi/q\""),
               K("joints", "", 'every joint "revolute"', 'an array of n "revolute" or "prismatic"',
                 "the joint variable adds to theta (revolute) or d (prismatic)"),
+              K("snap_angles", "rad", "1e-08", "1e-08 to 0.001",
+                "alpha and theta this close to a multiple of pi/2 are that multiple (a paper's 1.5708 as pi/2)"),
           )),
     Table("[[body]]", "derive.model.dh:BODY_KEYS",
           "One per DH row, in that link's DH frame.", (

@@ -88,6 +88,22 @@ def snapping(tolerance: float | None) -> Iterator[None]:
         _SNAP.reset(token)
 
 
+def snap_choice(r, value, field: str) -> float | None | bool:
+    """A snapping tolerance of an arm file (``[arm] snap_angles`` of a URDF arm, ``[dh] snap_angles``) read
+    with the derive.model.fields.Reader ``r``: None when absent (SNAP_TOLERANCE), the tolerance [rad], or
+    False after adding the problem: a number from SNAP_TOLERANCE to NEAR_MISS (:func:`snapping`)."""
+    from derive.model.fields import show
+
+    if value is None:
+        return None
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) \
+            and SNAP_TOLERANCE <= value <= NEAR_MISS:
+        return float(value)
+    r.add(field, f"a number of radians from {SNAP_TOLERANCE:g} to {NEAR_MISS:g}: angles that close to a multiple "
+          "of pi/2 are taken as that multiple (1e-05 takes the 1.5708 of CAD exporters as pi/2)", show(value))
+    return False
+
+
 def exact_angle(x: Fraction | int | float) -> sp.Expr:
     """An angle in radians, exact: k pi/2 when within the snapping tolerance of it (``SNAP_TOLERANCE``,
     or :func:`snapping`'s), else the exact decimal (its rotation is then made rational,

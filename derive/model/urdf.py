@@ -56,7 +56,6 @@ Ixz, Iyy, Iyz, Izz), named m1, hx1, ..., Izz1; the kinematics are constants.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from difflib import get_close_matches
 from fractions import Fraction
@@ -68,8 +67,7 @@ import sympy as sp
 from derive.errors import Problem
 from derive.model.chain import Body, Chain, Joint, JointType, Parameter, Transform
 from derive.model.fields import Reader, inline, show, to_fraction
-from derive.model.rigid import (NEAR_MISS, SNAP_TOLERANCE, empty_body, exact_angle, merge, move, rational, snapping,
-                                tidy)
+from derive.model.rigid import empty_body, exact_angle, merge, move, rational, snap_choice, snapping, tidy
 from derive.model.urdf_rules import (chain_mimics, check_inertials, held_values, judge_findings, mattering_joints,
                                      moving_links, repair_choice)
 from derive.model.urdf_xml import parse_safely
@@ -189,26 +187,11 @@ def urdf_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction
     A chain found without problems is kept for the process, keyed by the file's bytes and
     everything else it was read with: ``derive init`` reads the same URDF three times
     (the chain, the draft it certifies, the file it writes: 0.3 s each for Tiago's tree)."""
-    snap = snap_choice(r, d.get("snap_angles"))
+    snap = snap_choice(r, d.get("snap_angles"), "arm.snap_angles")
     if snap is False:
         return None
     with snapping(snap):
         return _cached_chain(r, d, base_dir, gravity, direction)
-
-
-def snap_choice(r: Reader, value: Any) -> float | None | bool:
-    """``[arm] snap_angles`` [rad]: None when absent (SNAP_TOLERANCE), the tolerance, or False after adding
-    the problem: a number from SNAP_TOLERANCE to NEAR_MISS (derive.model.rigid.snapping)."""
-    if value is None:
-        return None
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) \
-        and SNAP_TOLERANCE <= value <= NEAR_MISS
-    if not ok:
-        r.add("arm.snap_angles", f"a number of radians from {SNAP_TOLERANCE:g} to {NEAR_MISS:g}: angles that close "
-              "to a multiple of pi/2 are taken as that multiple (1e-05 takes the 1.5708 of CAD exporters as pi/2)",
-              show(value))
-        return False
-    return float(value)
 
 
 def _cached_chain(r: Reader, d: dict, base_dir: Path, gravity: Parameter, direction: sp.Matrix) -> UrdfChain | None:

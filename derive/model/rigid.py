@@ -39,21 +39,14 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
 from fractions import Fraction
 
 import mpmath
 import sympy as sp
 
 from derive.model.chain import Body, Transform
+from derive.model.snap import NEAR_MISS, SNAP_TOLERANCE, _SNAP, snap_choice, snap_tolerance, snapping  # noqa: F401
 
-SNAP_TOLERANCE = 1e-8    # rad: an angle this close to k pi/2 is k pi/2 exactly
-NEAR_MISS = 1e-3         # rad: an angle this close to k pi/2 but not snapped is reported
-# the tolerance of exact_angle and angle_note while a file is read: SNAP_TOLERANCE, or a URDF arm's
-# [arm] snap_angles (from SNAP_TOLERANCE to NEAR_MISS: the 4-digit pi/2 of CAD exporters, :func:`snapping`)
-_SNAP: ContextVar[float] = ContextVar("snap_tolerance", default=SNAP_TOLERANCE)
 ROTATION_BITS = 60       # integer quaternions and stereographic coordinates to 2^-60
 ROTATION_ERROR = 4e-18   # the stated bound of a rationalised rotation or unit vector (entry-wise)
 _HALF_PI = math.pi / 2
@@ -67,41 +60,6 @@ def rational(x: Fraction | int | float) -> sp.Rational:
         x = Fraction(repr(x))
     x = Fraction(x)
     return sp.Rational(x.numerator, x.denominator)
-
-
-def snap_tolerance() -> float:
-    """The snapping tolerance in force [rad]: ``SNAP_TOLERANCE``, or the one :func:`snapping` set."""
-    return _SNAP.get()
-
-
-@contextmanager
-def snapping(tolerance: float | None) -> Iterator[None]:
-    """Inside the block, :func:`exact_angle` snaps angles within ``tolerance`` rad of a multiple of
-    pi/2 (None: ``SNAP_TOLERANCE``). A URDF arm's ``[arm] snap_angles`` (derive.model.urdf): a frame
-    written as 1.5708, as SolidWorks and Onshape exporters write pi/2, is then pi/2 (3.7e-6 rad, 3.7 um at
-    a metre), whose rotation has exact 0 and +-1 entries; kept as written its rotation is dense with
-    120-bit rationals, and the exact proofs of derive check cost 4 to 8 times more (derive.proofs.torus)."""
-    token = _SNAP.set(SNAP_TOLERANCE if tolerance is None else float(tolerance))
-    try:
-        yield
-    finally:
-        _SNAP.reset(token)
-
-
-def snap_choice(r, value, field: str) -> float | None | bool:
-    """A snapping tolerance of an arm file (``[arm] snap_angles`` of a URDF arm, ``[dh] snap_angles``) read
-    with the derive.model.fields.Reader ``r``: None when absent (SNAP_TOLERANCE), the tolerance [rad], or
-    False after adding the problem: a number from SNAP_TOLERANCE to NEAR_MISS (:func:`snapping`)."""
-    from derive.model.fields import show
-
-    if value is None:
-        return None
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) \
-            and SNAP_TOLERANCE <= value <= NEAR_MISS:
-        return float(value)
-    r.add(field, f"a number of radians from {SNAP_TOLERANCE:g} to {NEAR_MISS:g}: angles that close to a multiple "
-          "of pi/2 are taken as that multiple (1e-05 takes the 1.5708 of CAD exporters as pi/2)", show(value))
-    return False
 
 
 def exact_angle(x: Fraction | int | float) -> sp.Expr:

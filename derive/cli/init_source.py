@@ -212,16 +212,18 @@ def _urdf(args, path: Path, shown: str, expanded: str | None = None, xacro: str 
                      args.tip)
     table = {"urdf": str(path.resolve()), "base_link": base, "tip_link": tip,
              "repair_inertia": bool(getattr(args, "repair_inertia", False))}
-    found = urdf_chain(r, table, Path("/"), gravity_parameter(Fraction(981, 100)), unit_direction(SPATIAL_DOWN))
-    if found is None:
-        raise _fail(path, r.problems, (("arm.base_link", "--base"), ("arm.tip_link", "--tip")))
-    snap = None
-    if found.kept_angles and max(found.kept_angles) <= INIT_SNAP:   # pi/2 rounded by an exporter
-        snap = snap_suggestion([("kept", "", "", off) for off in found.kept_angles])
+
+    def chain(snap: float | None = None):
         found = urdf_chain(r, {**table, "snap_angles": snap}, Path("/"), gravity_parameter(Fraction(981, 100)),
                            unit_direction(SPATIAL_DOWN))
         if found is None:
             raise _fail(path, r.problems, (("arm.base_link", "--base"), ("arm.tip_link", "--tip")))
+        return found
+
+    found, snap = chain(), None
+    if found.kept_angles and max(found.kept_angles) <= INIT_SNAP:   # pi/2 rounded by an exporter
+        snap = snap_suggestion(found.kept_angles)
+        found = chain(snap)
     return Source("urdf", path, described or shown, robot.name or "", "the URDF's robot name" if robot.name
                   else "the URDF file's name", base, tip, found, expanded=expanded, xacro=xacro, snap=snap)
 

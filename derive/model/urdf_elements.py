@@ -2,6 +2,7 @@
 a link's body, the <dynamics> values, and the notes on what reading them did."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
 import sympy as sp
@@ -134,10 +135,10 @@ def _zero_limit_notes(zero: dict[str, list[str]], notes: list[str]) -> None:
                          f"no {key} limit (the same in every command)")
 
 
-def snap_suggestion(log: list[tuple[str, str, str, float]]) -> float:
-    """The ``[arm] snap_angles`` [rad] that takes every near miss of ``log`` as its multiple of pi/2: the
-    1-2-5 value at or above the farthest (NEAR_MISS at most; the tolerance in force when none is kept)."""
-    kept = [off for kind, _, _, off in log if kind == "kept"]
+def snap_suggestion(kept: Sequence[float]) -> float:
+    """The ``[arm] snap_angles`` [rad] that takes every near miss kept (``kept``: how far each is from its
+    multiple of pi/2 [rad]) as that multiple: the 1-2-5 value at or above the farthest (NEAR_MISS at most;
+    the tolerance in force when none is kept)."""
     if not kept:
         return snap_tolerance()
     return next((v for v in (m * 10.0 ** e for e in range(-8, -2) for m in (1, 2, 5)) if v >= max(kept)), NEAR_MISS)
@@ -147,7 +148,7 @@ def angle_notes(log: list[tuple[str, str, str, float]]) -> list[str]:
     """One sentence for the angles snapped to multiples of pi/2 and one for the near misses kept (with
     the ``[arm] snap_angles`` that would take them: the 1-2-5 value at or above the farthest, derive.model.rigid)."""
     tol = snap_tolerance()
-    suggest = snap_suggestion(log)
+    suggest = snap_suggestion([off for kind, _, _, off in log if kind == "kept"])
     out = []
     for kind, head in (("snapped", f"angles within {tol:g} rad of a multiple of pi/2 snapped to it "
                                    "(exact 0 and +-1 in their rotations)"),

@@ -41,6 +41,9 @@ def test_snap_angles_takes_the_exporters_pi_over_2_as_pi_over_2(tmp_path):
     snapped = load_arm(_arm(tmp_path / "s", decimal, "snap_angles = 5e-6")).spatial
     exact = load_arm(_arm(tmp_path / "x", decimal.replace('rpy="1.5708 ', f'rpy="{HALF_PI} '))).spatial
     kept = load_arm(_arm(tmp_path / "k", decimal)).spatial
+    (tmp_path / "b").mkdir()   # just below the distance (3.7e-6 rad): kept as written
+    below = load_arm(_arm(tmp_path / "b", decimal, "snap_angles = 3e-6")).spatial
+    assert [j.origin.R for j in below.joints] == [j.origin.R for j in kept.joints]
     assert [j.origin.R for j in snapped.joints] == [j.origin.R for j in exact.joints]
     assert [j.origin.R for j in kept.joints] != [j.origin.R for j in exact.joints]
     assert sum(1 for j in snapped.joints for e in j.origin.R if e == 0) > \

@@ -65,6 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from derive.control.sampling.extremes import with_extremes
 from derive.control.sampling.grid import Grid, grid
 from derive.control.sampling.linear_loop import SampledLoop
 from derive.control.sampling.radius import spectral_radius
@@ -108,7 +109,8 @@ def operating_points(d) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _grid(d) -> Grid:
-    return _cached(_GRIDS, d, "grid", lambda: grid(d))
+    """derive.control.sampling.grid's points with the fastest poses joined (derive.control.sampling.extremes)."""
+    return _cached(_GRIDS, d, "grid", lambda: with_extremes(d, _loop(d), grid(d)))
 
 
 def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None,

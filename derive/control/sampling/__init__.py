@@ -78,6 +78,7 @@ MARGIN = 0.9
 DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
 DT_START = 1e-5   # s: where the doubling starts (after the loop is checked stable at DT_MIN)
+TOLERANCE = 1.01  # the bisection's end: hi / lo at most this (1 %)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
 GROWTH = 4.0      # the bracket's growth per step from DT_START
 SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
@@ -112,12 +113,13 @@ def _grid(d) -> Grid:
 
 
 def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None,
-                 holds: dict | None = None) -> SampleLimit:
+                 holds: dict | None = None, tolerance: float = TOLERANCE) -> SampleLimit:
     """The largest stable sample time of ``form`` (FORMS) with the observer discretisation ``observer``
     (OBSERVERS; the module docstring), with the stated margin (``loop``: the derivation's SampledLoop
     when the caller has it; ``holds``: the plant's zero-order holds of the search's subsets per (dt, A,
-    Bu), shared with the other forms' searches on the same points, :func:`limits`). Raises ValueError
-    for an unknown form or discretisation."""
+    Bu), shared with the other forms' searches on the same points, :func:`limits`; ``tolerance``: the
+    bisection ends when its bracket hi / lo is at most this). Raises ValueError for an unknown form or
+    discretisation."""
     if form not in FORMS or observer not in OBSERVERS + (_Z_ONLY,):
         raise ValueError(f"sample_limit: expected a form of {FORMS} and an observer of {OBSERVERS}, "
                          f"got {form!r}, {observer!r}")
@@ -200,7 +202,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
             rho = radii(hi, subset, rank=True)
         lo, bad = safe, int(subset[rho.argmax()])
         active = subset[np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]]
-        while hi / lo > 1.01:
+        while hi / lo > tolerance:
             mid = math.sqrt(lo * hi)
             r = radii(mid, active)
             if r.max() < 1.0:

@@ -82,6 +82,7 @@ TOLERANCE = 1.01  # the bisection's end: hi / lo at most this (1 %)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
 GROWTH = 4.0      # the bracket's growth per step from DT_START
 SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
+WHOLE = 4096      # the whole grid's radii this many points at a time (a caller's 20,000 points took 1.9 GB at once)
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         failing ones; ``rank``: every one exact when one fails (the active set ranks them). At
         DT_MIN the loop's radii lie within about 1e-7 of 1, where stable_bound proves none: their
         eigenvalues come first (``eigen_first``)."""
+        if idx is None and len(pts) > WHOLE:   # memory: the transitions of WHOLE points at a time
+            parts = ({k: v[i:i + WHOLE] for k, v in L.items()} for i in range(0, len(pts), WHOLE))
+            return np.concatenate([spectral_radius(_transition(loop, form, observer, dt, part), False, rank,
+                                                   dt <= DT_MIN) for part in parts])
         if idx is not None and rows[0] is not idx:
             rows[:] = idx, {k: v[idx] for k, v in L.items()}
         M = L if idx is None else rows[1]

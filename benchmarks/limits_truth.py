@@ -12,10 +12,11 @@ loop grows from 1.3 ms), but
 
 * on a denser set of operating points (:func:`dense_points`): the grid's own configurations and
   FACTOR - 1 times as many more, seeded random within the joint ranges (grid.spans), times the
-  grid's speeds and, for the joints whose angle neither J nor G depends on (``cyclic``: a base yaw),
-  their constant spins within the box at SPIN_FRACTIONS of the bound: a steady motion, where the
-  frozen-time linearisation is exact; and SCREEN more seeded configurations at rest (equilibria:
-  exact too; the configuration matters most: J^-1 sets the observer's and the law's fast modes);
+  grid's speeds and, for the joints whose angle neither J nor G depends on (``cyclic``: a base yaw,
+  a vertical lift), their constant spins, each alone at SPIN_FRACTIONS of its bound and several
+  together at their bounds: steady motions, where the frozen-time linearisation is exact; and SCREEN
+  more seeded configurations at rest (equilibria: exact too; the configuration matters most: J^-1
+  sets the observer's and the law's fast modes);
 * then a local search (:func:`_climb`) from the CLIMB_STARTS configurations nearest to failing,
   for one that fails below the limit found (random points alone keep finding lower limits: the
   Piper's at-rest 2 / max |eig(W J^-1)| is 5.1 ms over 48 configurations, 1.86 ms over 288, 1.16 ms
@@ -34,6 +35,11 @@ derive's claim is stated <= true: :func:`truth` checks the stated limit stable a
 (``rho_stated`` < 1), and that the true limit is the edge: rho >= 1 at ABOVE x true at its worst
 point (``rho_above``).
 
+Cost (2-core machine, CPU time of the whole command): 3 s for the two-link arm, 30-45 s for the
+corpus's 6-7 joint arms (9,300-9,700 points), 60-70 s for Tiago's 8 joints with two cyclic joints
+(12,000), at most 600 MiB: the linearisation of the laws at every point (CasADi, about 0.25 ms a
+point at 7 joints) and the local searches take most of it.
+
 ``python -m benchmarks.limits_truth ARM.toml [--json OUT]`` prints the table (and writes it as
 JSON); benchmarks/corpus.py runs it for every arm after ``derive init``, in a process of its own.
 """
@@ -51,14 +57,15 @@ SCREEN = 4096         # more configurations, at rest only
 SEED = 1              # the dense set's random configurations (the grid's own use seed 0)
 TOLERANCE = 1.002     # the true limit's bisection: hi / lo at most this (0.2 %)
 ABOVE = 1.01          # the true limit is the edge: rho >= 1 at ABOVE x true at its worst point
-SPIN_FRACTIONS = tuple(k / 8 for k in range(1, 9))   # of a cyclic joint's speed bound
-MAX_SPIN_SIGNS = 8    # sign patterns of several cyclic joints spinning together (a seeded choice past this)
+SPIN_FRACTIONS = (0.25, 0.5, 0.75, 1.0)   # of a cyclic joint's speed bound
+MAX_SPIN_SIGNS = 4    # sign patterns of several cyclic joints spinning together (a seeded choice past this)
 CHUNK = 2048          # points per batch of the exact radii over the dense set (memory)
-NEAR = 0.99           # radii at the stated limit from this up are exact (below it: stable_bound's bound)
-CLIMB_STARTS = 8      # the local search's starts: the dense configurations nearest to failing
-CLIMB_ROUNDS = 80     # its rounds at most
-CLIMB_STEP = 1e-3     # its last step, of each range's width
+NEAR = 0.99           # radii over the dense set are exact from this up (below it: stable_bound's bound)
+CLIMB_STARTS = 6      # the local search's starts: the dense configurations nearest to failing
+CLIMB_ROUNDS = 60     # its rounds at most
+CLIMB_STEP = 1e-3     # its last step, of each range's width (its first: 1/8, then 1/32 from a point it reached)
 CLIMB_PASSES = 4      # searches (each at the limit the last one left) at most
+CLIMB_GAIN = 1.01     # and no more once one lowers the limit by less than this factor
 ENTRIES = (("mpc", "explicit"), ("dobc", "explicit"), ("npid", "explicit"), ("mom", "explicit"),
            ("dobc", "implicit"), ("npid", "implicit"))   # MPC and MOM: the same step in both builds
 _ORDER = sorted(ENTRIES, key=lambda e: e[0])   # computed a form at a time (_Kept keeps one form's linearisation)
@@ -108,10 +115,11 @@ def cyclic(d) -> list[int]:
 
 def _spins(bounds: np.ndarray, joints: list[int], n: int) -> list[np.ndarray]:
     """Speeds [rad/s or m/s] of the cyclic ``joints`` alone (the others at rest) within the box: each
-    alone and, for several, together (signs: all, or MAX_SPIN_SIGNS seeded), at SPIN_FRACTIONS of
-    their bounds."""
+    alone at SPIN_FRACTIONS of its bound and, for several, together at their bounds (signs: all, or
+    MAX_SPIN_SIGNS seeded)."""
     joints = [k for k in joints if bounds[k] > 0]
-    signs = [np.eye(n)[k] for k in joints] + [-np.eye(n)[k] for k in joints]
+    alone = [f * s * bounds * np.eye(n)[k] for k in joints for s in (1.0, -1.0) for f in SPIN_FRACTIONS]
+    signs = []
     if len(joints) > 1:
         patterns = list(np.array(p) for p in np.ndindex(*(2,) * len(joints)))
         if len(patterns) > MAX_SPIN_SIGNS:
@@ -121,7 +129,7 @@ def _spins(bounds: np.ndarray, joints: list[int], n: int) -> list[np.ndarray]:
             v = np.zeros(n)
             v[joints] = 1.0 - 2.0 * p
             signs.append(v)
-    return [f * s * bounds for s in signs for f in SPIN_FRACTIONS]
+    return alone + [s * bounds for s in signs]
 
 
 @dataclass(frozen=True)
@@ -132,6 +140,7 @@ class Dense:
     points: list
     kinds: list
     config: np.ndarray
+    cyclic: list      # the cyclic joints (0-based)
 
 
 def dense_points(d, factor: int = FACTOR, screen: int = SCREEN) -> Dense:
@@ -161,7 +170,7 @@ def dense_points(d, factor: int = FACTOR, screen: int = SCREEN) -> Dense:
     rest = np.zeros(d.n)
     points = [(q, v) for q in Q for v in S] + [(q, rest) for q in R]
     config = np.concatenate([np.repeat(np.arange(len(Q)), len(S)), len(Q) + np.arange(len(R))])
-    return Dense(points, [k for _ in Q for k in kinds] + ["rest"] * len(R), config)
+    return Dense(points, [k for _ in Q for k in kinds] + ["rest"] * len(R), config, cyc)
 
 
 class _Kept:
@@ -181,19 +190,30 @@ class _Kept:
         Q, DQ = np.asarray(Q, dtype=float), np.asarray(DQ, dtype=float)
         if Q.shape != self._Q.shape or not (np.array_equal(Q, self._Q) and np.array_equal(DQ, self._V)):
             return self._loop.linearise(form, Q, DQ)
-        if form not in self._kept:   # one form at a time (truth takes each form's two steps in turn): memory
-            self._kept = {form: self._loop.linearise(form, Q, DQ)}
+        if form not in self._kept:   # one form at a time (truth takes each form's two steps in turn), CHUNK
+            self._kept = {}          # points at a time: memory
+            parts = [self._loop.linearise(form, Q[i:i + CHUNK], DQ[i:i + CHUNK]) for i in range(0, len(Q), CHUNK)]
+            self._kept = {form: {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}}
         return self._kept[form]
 
-    def radii(self, form: str, observer: str, dt: float, exact: bool = True) -> np.ndarray:
-        """The spectral radius at ``dt`` [s] at every dense point, CHUNK at a time (memory); not ``exact``:
-        where derive.control.sampling.radius.stable_bound proves it below 1, that bound instead."""
+    def radii(self, form: str, observer: str, dt: float, exact: bool = True, idx=None) -> np.ndarray:
+        """The spectral radius at ``dt`` [s] at every dense point (those of ``idx``), CHUNK at a time
+        (memory); not ``exact``: where derive.control.sampling.radius.stable_bound proves it below 1, that
+        bound instead."""
         from derive.control.sampling import _radii
 
         L = self.linearise(form, self._Q, self._V)
-        P = self._Q.shape[0]
-        return np.concatenate([_radii(self._loop, form, observer, dt, {k: v[i:i + CHUNK] for k, v in L.items()},
-                                      exact) for i in range(0, P, CHUNK)])
+        idx = np.arange(self._Q.shape[0]) if idx is None else np.asarray(idx, dtype=int)
+        return np.concatenate([_radii(self._loop, form, observer, dt, {k: v[idx[i:i + CHUNK]] for k, v in L.items()},
+                                      exact) for i in range(0, len(idx), CHUNK)] or [np.zeros(0)])
+
+    def near(self, form: str, observer: str, dt: float) -> np.ndarray:
+        """The radii at ``dt`` [s] at every dense point, exact from NEAR up (below it an upper bound:
+        stable_bound's, where the eigenvalues would cost most of the time)."""
+        rho = self.radii(form, observer, dt, exact=False)
+        close = np.flatnonzero(rho >= NEAR)
+        rho[close] = self.radii(form, observer, dt, idx=close)
+        return rho
 
 
 def _rho(loop, form: str, observer: str, dt: float, points) -> np.ndarray:
@@ -205,28 +225,28 @@ def _rho(loop, form: str, observer: str, dt: float, points) -> np.ndarray:
     return _radii(loop, form, observer, dt, L)
 
 
-def _climb(loop, form: str, observer: str, dt: float, starts, d) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A compass search of the configuration, within the joint ranges, for the largest spectral radius
-    at ``dt`` from each of ``starts`` ((theta, theta') with theta' held): each round moves each start
-    to the best of its 2 n neighbours at distance h (of the ranges' widths) when that is larger, else
-    halves h, from 1/8 down to CLIMB_STEP. Returns the configurations (k x n), the speeds and radii."""
-    from derive.control.sampling.grid import spans
-
-    s = spans(d)
-    lo, hi = np.array([a for a, _, _ in s]), np.array([b for _, b, _ in s])
+def _climb(loop, form: str, observer: str, dt: float, starts, box: tuple, h0: float = 0.125):
+    """A compass search of the configuration, within the joint ranges ``box`` = (lo, hi, axes: the
+    coordinates J and G depend on, with a range), for the largest spectral radius at ``dt`` from each of
+    ``starts`` ((theta, theta') with theta' held): each round moves each start to the best of its
+    neighbours at distance h (of the ranges' widths) along the axes when that is larger, else halves h,
+    from ``h0`` down to CLIMB_STEP. Returns the configurations (k x n), the speeds and radii."""
+    lo, hi, axes = box
     width = hi - lo
     Q = np.array([q for q, _ in starts], dtype=float)
     V = np.array([v for _, v in starts], dtype=float)
     k, n = Q.shape
     f = _rho(loop, form, observer, dt, list(zip(Q, V)))
-    h = np.full(k, 0.125)
-    steps = np.vstack([np.eye(n), -np.eye(n)])
+    if not axes:
+        return Q, V, f
+    h = np.full(k, h0)
+    steps = np.vstack([np.eye(n)[axes], -np.eye(n)[axes]])                                    # 2m x n
     for _ in range(CLIMB_ROUNDS):
         if h.max() < CLIMB_STEP:
             break
-        trial = np.clip(Q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)        # k x 2n x n
-        r = _rho(loop, form, observer, dt, list(zip(trial.reshape(-1, n), np.repeat(V, 2 * n, axis=0))))
-        r = r.reshape(k, 2 * n)
+        trial = np.clip(Q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)        # k x 2m x n
+        r = _rho(loop, form, observer, dt, list(zip(trial.reshape(-1, n), np.repeat(V, len(steps), axis=0))))
+        r = r.reshape(k, len(steps))
         best = r.argmax(axis=1)
         better = r[np.arange(k), best] > f
         Q[better] = trial[np.arange(k), best][better]
@@ -240,11 +260,15 @@ def truth(d, factor: int = FACTOR) -> list[Truth]:
     dense points' limit (sample_limit to TOLERANCE), then a local search (:func:`_climb`) from the
     CLIMB_STARTS configurations nearest to failing there for a configuration that fails below it; the
     points it finds join, and the limit is bisected again on them, until a search finds none that
-    lowers it (at most CLIMB_PASSES)."""
+    lowers it by CLIMB_GAIN (at most CLIMB_PASSES)."""
     from derive.control.sampling import _loop, limits, sample_limit
+
+    from derive.control.sampling.grid import spans
 
     dense = dense_points(d, factor)
     points, kinds = dense.points, dense.kinds
+    lo, hi = (np.array([x[i] for x in spans(d)]) for i in (0, 1))
+    box = lo, hi, [k for k in range(d.n) if hi[k] > lo[k] and k not in dense.cyclic]
     loop = _Kept(_loop(d), points)
     holds: dict = {}
     out = []
@@ -255,11 +279,11 @@ def truth(d, factor: int = FACTOR) -> list[Truth]:
         found: list = []    # (theta, theta') the searches reached, and their kinds
         found_kinds: list = []
         if 0 < true < math.inf:
-            rho = loop.radii(form, observer, true)
+            rho = loop.near(form, observer, true)
             starts = [points[i] for i in _firsts(rho, dense.config)]
             start_kinds = [kinds[i] for i in _firsts(rho, dense.config)]
-            for _ in range(CLIMB_PASSES):
-                Q, V, f = _climb(loop, form, observer, true, starts, d)
+            for k in range(CLIMB_PASSES):
+                Q, V, f = _climb(loop, form, observer, true, starts, box, 0.125 if k == 0 else 1 / 32)
                 if f.max() < 1.0:
                     break
                 starts = list(zip(Q, V))
@@ -268,14 +292,14 @@ def truth(d, factor: int = FACTOR) -> list[Truth]:
                 sub = sample_limit(d, form, observer, points=found, loop=loop, tolerance=TOLERANCE)
                 if not sub.raw < true:
                     break
-                true, worst, kind = sub.raw, sub.worst, found_kinds[_find(found, sub.worst)]
+                gain, (true, worst, kind) = true / sub.raw, (sub.raw, sub.worst, found_kinds[_find(found, sub.worst)])
+                if gain < CLIMB_GAIN:
+                    break
         ratio = true / stated.limit if 0 < stated.limit < math.inf and 0 < true < math.inf else math.nan
         rho_stated = math.nan
         if 0 < stated.limit < math.inf:
-            rho = loop.radii(form, observer, stated.limit, exact=False)
-            near = [points[i] for i in np.flatnonzero(rho >= NEAR)] + found   # exact radii near 1
-            exact = _rho(loop, form, observer, stated.limit, near) if near else np.zeros(1)
-            rho_stated = max(float(rho.max()), float(exact.max()))
+            more = _rho(loop, form, observer, stated.limit, found) if found else np.zeros(0)
+            rho_stated = float(np.concatenate([loop.near(form, observer, stated.limit), more]).max())
         rho_above = math.nan
         if worst is not None and 0 < true < math.inf:
             rho_above = float(_rho(loop, form, observer, ABOVE * true, [tuple(np.array(x) for x in worst)])[0])
@@ -285,7 +309,8 @@ def truth(d, factor: int = FACTOR) -> list[Truth]:
 
 
 def _firsts(rho: np.ndarray, config: np.ndarray) -> list[int]:
-    """The CLIMB_STARTS points of largest radius ``rho``, one per configuration (at its worst speed)."""
+    """The CLIMB_STARTS points of largest radius ``rho`` (_Kept.near), one per configuration (at its worst
+    speed)."""
     out, seen = [], set()
     for i in np.argsort(rho)[::-1]:
         if config[i] not in seen:
@@ -334,6 +359,7 @@ def main(argv: list[str]) -> int:
     if argv[1:2] == ["--json"]:
         with open(argv[2], "w", encoding="utf-8") as f:
             f.write(dumps({"cpu_seconds": cpu, "joints": d.n, "cyclic": [k + 1 for k in cyclic(d)],
+                           "sample_time": d.arm.simulation.sample_time, "observer": d.arm.controller.observer,
                            "rows": [asdict(t) for t in rows]}))
     return 3 if bad else 0
 

@@ -59,6 +59,8 @@ TOLERANCE = 1.002     # the true limit's bisection: hi / lo at most this (0.2 %)
 ABOVE = 1.01          # the true limit is the edge: rho >= 1 at ABOVE x true at its worst point
 SPIN_FRACTIONS = (0.25, 0.5, 0.75, 1.0)   # of a cyclic joint's speed bound
 MAX_SPIN_SIGNS = 4    # sign patterns of several cyclic joints spinning together (a seeded choice past this)
+CYCLIC_SAMPLES = 16   # states at which a cyclic joint's coordinate is moved (cyclic)
+CYCLIC_TOL = 1e-12    # J and G unchanged to this, relative to their largest entry
 CHUNK = 2048          # points per batch of the exact radii over the dense set (memory)
 NEAR = 0.99           # radii over the dense set are exact from this up (below it: stable_bound's bound)
 CLIMB_STARTS = 6      # the local search's starts: the dense configurations nearest to failing
@@ -105,12 +107,33 @@ class Truth:
 
 
 def cyclic(d) -> list[int]:
-    """The joints (0-based) whose angle neither J nor G depends on: a constant spin of them alone is a
-    steady motion of the arm."""
-    free = set()
-    for x in list(d.J) + list(d.G):
-        free |= x.free_symbols
-    return [k for k, th in enumerate(d.theta) if th not in free]
+    """The joints (0-based) whose coordinate neither J nor G depends on: a constant spin of them alone is
+    a steady motion of the arm. Found numerically (SymPy's free_symbols over J and G took a minute for
+    the decimal 7-joint chain): J(theta) and G(theta, theta') at CYCLIC_SAMPLES seeded states, and again
+    with coordinate k moved within its range, agree to CYCLIC_TOL of their size."""
+    from derive.control.sampling import _loop
+    from derive.control.sampling.grid import spans
+
+    loop = _loop(d)
+    lo, hi = (np.array([x[i] for x in spans(d)]) for i in (0, 1))
+    rng = np.random.default_rng(SEED)
+    Q = lo + (hi - lo) * rng.random((CYCLIC_SAMPLES, d.n))
+    V = rng.uniform(-1.0, 1.0, (CYCLIC_SAMPLES, d.n))
+
+    def values(Q: np.ndarray) -> np.ndarray:
+        return np.hstack([loop.mass(Q).reshape(len(Q), -1), loop.bias(Q, V)[0]])
+
+    ref = values(Q)
+    scale = np.abs(ref).max()
+    out = []
+    for k in range(d.n):
+        if hi[k] <= lo[k]:
+            continue
+        moved = Q.copy()
+        moved[:, k] = lo[k] + (hi[k] - lo[k]) * rng.random(CYCLIC_SAMPLES)
+        if np.abs(values(moved) - ref).max() <= CYCLIC_TOL * scale:
+            out.append(k)
+    return out
 
 
 def _spins(bounds: np.ndarray, joints: list[int], n: int) -> list[np.ndarray]:

@@ -35,10 +35,11 @@ derive's claim is stated <= true: :func:`truth` checks the stated limit stable a
 (``rho_stated`` < 1), and that the true limit is the edge: rho >= 1 at ABOVE x true at its worst
 point (``rho_above``).
 
-Cost (2-core machine, CPU time of the whole command): 3 s for the two-link arm, 30-45 s for the
-corpus's 6-7 joint arms (9,300-9,700 points), 60-70 s for Tiago's 8 joints with two cyclic joints
-(12,000), at most 600 MiB: the linearisation of the laws at every point (CasADi, about 0.25 ms a
-point at 7 joints) and the local searches take most of it.
+Cost (2-core machine, CPU time of the whole command, unloaded): 3 s for the two-link arm, 30-48 s
+for the corpus's 6-7 joint arms (9,300-9,700 points), 61-69 s for Tiago's 8 joints with two cyclic
+joints (12,000), at most 600 MiB (at a load of 5 on the 2 cores, up to 1.4 times the time): the
+linearisation of the laws at every point (CasADi, about 0.25 ms a point at 7 joints), the whole
+set's radii and the local searches take most of it.
 
 ``python -m benchmarks.limits_truth ARM.toml [--json OUT]`` prints the table (and writes it as
 JSON); benchmarks/corpus.py runs it for every arm after ``derive init``, in a process of its own.

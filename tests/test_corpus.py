@@ -173,7 +173,7 @@ def pipeline(request, tmp_path_factory):
 def test_corpus_arm_goes_through_every_command(pipeline) -> None:
     """Every command exits 0, the C self-tests pass and the Python module checks out."""
     assert [c.command for c in pipeline.commands] == ["init", "show", "check", "generate", "selftest-c",
-                                                      "selftest-python", "simulate", "fmu --plant"]
+                                                      "selftest-python", "simulate", "fmu --plant", "limits truth"]
     failed = {c.command: c.detail for c in pipeline.commands if not c.ok}
     assert not failed, failed
 

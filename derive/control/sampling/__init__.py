@@ -79,9 +79,11 @@ MARGIN = 0.9
 DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
 DT_START = 1e-5   # s: where the doubling starts (after the loop is checked stable at DT_MIN)
+TOLERANCE = 1.01  # the bisection's end: hi / lo at most this (1 %)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
 GROWTH = 4.0      # the bracket's growth per step from DT_START
 SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
+WHOLE = 4096      # the whole grid's radii this many points at a time (a caller's 20,000 points took 1.9 GB at once)
 
 
 @dataclass(frozen=True)
@@ -114,12 +116,13 @@ def _grid(d) -> Grid:
 
 
 def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: SampledLoop | None = None,
-                 holds: dict | None = None) -> SampleLimit:
+                 holds: dict | None = None, tolerance: float = TOLERANCE) -> SampleLimit:
     """The largest stable sample time of ``form`` (FORMS) with the observer discretisation ``observer``
     (OBSERVERS; the module docstring), with the stated margin (``loop``: the derivation's SampledLoop
     when the caller has it; ``holds``: the plant's zero-order holds of the search's subsets per (dt, A,
-    Bu), shared with the other forms' searches on the same points, :func:`limits`). Raises ValueError
-    for an unknown form or discretisation."""
+    Bu), shared with the other forms' searches on the same points, :func:`limits`; ``tolerance``: the
+    bisection ends when its bracket hi / lo is at most this). Raises ValueError for an unknown form or
+    discretisation."""
     if form not in FORMS or observer not in OBSERVERS + (_Z_ONLY,):
         raise ValueError(f"sample_limit: expected a form of {FORMS} and an observer of {OBSERVERS}, "
                          f"got {form!r}, {observer!r}")
@@ -146,6 +149,10 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         failing ones; ``rank``: every one exact when one fails (the active set ranks them). At
         DT_MIN the loop's radii lie within about 1e-7 of 1, where stable_bound proves none: their
         eigenvalues come first (``eigen_first``)."""
+        if idx is None and len(pts) > WHOLE:   # memory: the transitions of WHOLE points at a time
+            parts = ({k: v[i:i + WHOLE] for k, v in L.items()} for i in range(0, len(pts), WHOLE))
+            return np.concatenate([spectral_radius(_transition(loop, form, observer, dt, part), False, rank,
+                                                   dt <= DT_MIN) for part in parts])
         if idx is not None and rows[0] is not idx:
             rows[:] = idx, {k: v[idx] for k, v in L.items()}
         M = L if idx is None else rows[1]
@@ -202,7 +209,7 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
             rho = radii(hi, subset, rank=True)
         lo, bad = safe, int(subset[rho.argmax()])
         active = subset[np.argsort(rho)[-max(ACTIVE, len(rho) // 20):]]
-        while hi / lo > 1.01:
+        while hi / lo > tolerance:
             mid = math.sqrt(lo * hi)
             r = radii(mid, active)
             if r.max() < 1.0:

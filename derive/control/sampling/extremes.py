@@ -5,13 +5,16 @@ two). A sampled loop's limit is set where a mode is fastest, and a random draw c
 my3 (3 joints, vertical) is most unstable upright, where gravity's rate is 193 1/s^2 against 139 at the
 grid's fastest; there NPID with the implicit observer step is unstable from 47.2 ms, while the grid gave
 52.8 ms and derive stated 0.9 of it, 47.55 ms: above the truth (issue 34, found by
-benchmarks/limits_truth.py's denser check). Two rates at rest are maximised within the joint ranges, each
-from the grid's two fastest configurations, by a compass search (each round tries every coordinate +-h of
-its range and moves to the best that is faster, else halves h; as derive.control.sampling.grid searches
-for a singular J):
+benchmarks/limits_truth.py's denser check; the Piper's DOBC limit at rest, 2 / max eig(W J^-1), is 5.1 ms
+over the 48 configurations and 1.15 ms over 200,000). Three rates at rest are maximised within the joint
+ranges, each from the two fastest of the grid's configurations and SCREEN seeded ones, by a compass search
+(each round tries every coordinate +-h of its range and moves to the best that is faster, else halves h;
+as derive.control.sampling.grid searches for a singular J):
 
 * gravity: the largest real part of the eigenvalues of -J^-1 dG/dtheta at rest (1/s^2: the square of
   an inverted pendulum's rate; the upright pose);
+* damping: the largest real part of the eigenvalues of J^-1 dG/dtheta' at rest (1/s: viscous friction
+  and the motors' back-EMF over the inertia, which the law compensates within a sample);
 * the observer: the largest real part of the eigenvalues of J^-1 W (1/s: eq. 24's rate, whose
   2 / rate bounds the forward-Euler observer step).
 
@@ -25,8 +28,10 @@ import numpy as np
 from derive.control.sampling.grid import Grid, check_definite, spans
 
 JOIN = 1.01        # a found rate must exceed the grid's fastest by this factor to join
-STARTS = 2         # the grid's fastest configurations each search starts from
+STARTS = 2         # the fastest screened configurations each search starts from
 ROUNDS = 60        # compass rounds at most per search
+SCREEN = 1024      # seeded configurations within the ranges screened for the searches' starts
+SEED = 2
 FIRST_STEP = 0.125   # of each coordinate's range
 LAST_STEP = 1.0 / 512
 
@@ -36,6 +41,14 @@ def _gravity(loop, Q: np.ndarray) -> np.ndarray:
     J = loop.mass(Q)
     _, dG = loop.bias(Q, np.zeros_like(Q))
     return np.linalg.eigvals(-np.linalg.solve(J, dG[:, :, :loop.n])).real.max(axis=1)
+
+
+def _damping(loop, Q: np.ndarray) -> np.ndarray:
+    """max Re eig(J^-1 dG/dtheta') at rest at configurations Q (P x n) [1/s]: viscous friction and, with
+    voltage input, the back-EMF over the inertia (a light wrist's fast mode, compensated by the law)."""
+    J = loop.mass(Q)
+    _, dG = loop.bias(Q, np.zeros_like(Q))
+    return np.linalg.eigvals(np.linalg.solve(J, dG[:, :, loop.n:])).real.max(axis=1)
 
 
 def _observer(loop, Q: np.ndarray) -> np.ndarray:
@@ -78,11 +91,13 @@ def with_extremes(d, loop, g: Grid) -> Grid:
     if not np.any(hi > lo):
         return g
     found = []
-    for rate in (_gravity, _observer):
-        values = rate(loop, configs)
+    rng = np.random.default_rng(SEED)
+    screen = np.vstack([configs, lo + (hi - lo) * rng.random((SCREEN, n))])
+    for rate in (_gravity, _damping, _observer):
+        values = rate(loop, screen)
         top = np.argsort(-values, kind="stable")[:STARTS]
-        q, value = _ascend(lambda Q: rate(loop, Q), configs[top], lo, hi)
-        if value > 0 and value > JOIN * float(values.max()) \
+        q, value = _ascend(lambda Q: rate(loop, Q), screen[top], lo, hi)
+        if value > 0 and value > JOIN * float(values[:configs.shape[0]].max()) \
                 and not any(np.allclose(q, other, rtol=0.0, atol=1e-9) for other in found):
             found.append(q)
     if not found:

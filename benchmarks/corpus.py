@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from benchmarks import Goal, Section, table
+from benchmarks.corpus_limits import limit_goals, limits_markdown
 from derive.jsonio import dumps
 
 TITLE = "URDF and MJCF corpus: every arm through every command"
@@ -281,7 +282,6 @@ def run_corpus(names: tuple[str, ...] = (), timeout: float = TIMEOUT) -> list[Ar
 
 COLUMNS = ("init", "show", "check", "generate", "selftest-c", "selftest-python", "simulate", "fmu --plant",
            "limits truth")
-LIMIT_FORMS = ("MPC", "DOBC", "NPID", "MOM", "DOBC-i", "NPID-i")   # benchmarks.limits_truth's labels
 
 
 def _cell(result: ArmResult, command: str) -> str:
@@ -301,9 +301,6 @@ def markdown(results: list[ArmResult], timeout: float) -> str:
              "-" if r.pinocchio_load_s is None else f"{r.pinocchio_load_s * 1e3:.1f} ms"]
             + [_cell(r, c) for c in COLUMNS] + [_tracking_cell(r)] for r in results]
     failures = [f"- {r.name} `{c.command}`: {c.detail}" for r in results for c in r.commands if not c.ok]
-    above = [f"- {r.name} {x['label']}: stated {x['stated'] * 1e3:.4g} ms, true {x['true'] * 1e3:.4g} ms "
-             f"(rho {x['rho_stated']:.4f} at the stated limit, at a point {x['kind']}: theta {_point(x['worst'][0])}, "
-             f"theta' {_point(x['worst'][1])})" for r in results for x in _limit_rows(r) if _above(x)]
     limited = [r for r in results if r.limits]
     return "\n\n".join([
         table(("arm", "joints", "Pinocchio load") + COLUMNS + ("tracking",), rows),
@@ -311,46 +308,12 @@ def markdown(results: list[ArmResult], timeout: float) -> str:
         "per command); the goals read the CPU time. Tracking: the starter file's own simulate run, per form the "
         "worst joint's RMS / max tracking error [rad] over the run (and which joint); MPC alone has no observer.",
         "Failures:\n\n" + "\n".join(failures) if failures else "No failures.",
-        *([table(("arm", "joints", "starter dt") + LIMIT_FORMS, [_limits_row(r) for r in limited]),
-           "Sample-time limits [ms], stated / true (true / stated): stated as derive check prints it (0.9 of the "
-           "largest stable sample time over derive's grid); true the largest at which the linearised sampled loop "
-           "is stable at every point of a denser set (benchmarks/limits_truth.py: the grid's configurations and 3x "
-           "more times its speeds and the cyclic joints' spins, 4096 more at rest, a local search; no margin, "
-           "bisected to 0.2 %). -i: the implicit observer step. Starter dt: the arm file's sample time and "
-           "observer step.",
-           "Stated above the true limit:\n\n" + "\n".join(above) if above else "No stated limit above the true one."]
-          if limited else [])])
-
-
-def _limit_rows(result: ArmResult) -> list[dict]:
-    return [dict(x, label=x["form"].upper() + ("-i" if x["observer"] == "implicit" else ""))
-            for x in (result.limits or {}).get("rows", [])]
-
-
-def _above(x: dict) -> bool:
-    """A stated limit above the true one, or unstable at a point of the dense set (limits_truth.Truth)."""
-    return x["stated"] > x["true"] or not x["rho_stated"] < 1.0
-
-
-def _point(v) -> str:
-    return "(" + ", ".join(f"{a:.4g}" for a in v) + ")"
-
-
-def _ms(x: float) -> str:
-    return "-" if not x or x != x else "inf" if x == float("inf") else f"{x * 1e3:.4g}"
-
-
-def _limits_row(result: ArmResult) -> list:
-    rows = {x["label"]: x for x in _limit_rows(result)}
-    lim = result.limits
-    cells = [f"{_ms(x['stated'])} / {_ms(x['true'])} ({x['ratio']:.3g})" + (" ABOVE" if _above(x) else "")
-             if (x := rows.get(f)) else "-" for f in LIMIT_FORMS]
-    return [result.name, result.joints, f"{lim['sample_time'] * 1e3:g} ms {lim['observer']}"] + cells
+        *(limits_markdown(limited) if limited else [])])
 
 
 def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
     """Issue 19's goals for 7-joint arms: show < 5 s, check < 30 s, generate < 15 s, < 1 GiB; issue 34's for the
-    sample-time limits (every arm: _limit_goals)."""
+    sample-time limits (every arm: benchmarks.corpus_limits.limit_goals)."""
     out = []
     seven = [r for r in results if r.joints == 7]
     for command, limit in (("show", 5.0), ("check", 30.0), ("generate", 15.0), ("fmu --plant", 30.0)):
@@ -360,33 +323,13 @@ def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
             worst = max(times, key=lambda x: x[1])
             out.append(Goal(f"7-joint arms: {command} under {limit:g} s of CPU", all(ok and t < limit for _, t, ok in times),
                             f"slowest {worst[0]}: {worst[1]:.1f} s"))
-    out += _limit_goals(results)
+    out += limit_goals(results)
     peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib is not None]
     if peaks:
         worst = max(peaks, key=lambda x: x[2])
         out.append(Goal("7-joint arms: every command under 1 GiB", worst[2] < 1024,
                         f"largest {worst[0]} {worst[1]}: {worst[2]:.0f} MiB"))
     return tuple(out)
-
-
-def _limit_goals(results: list[ArmResult]) -> list[Goal]:
-    """Issue 34's: every stated sample-time limit at most the true one, and within 1.5x of it, per form."""
-    rows = [(r.name, x) for r in results for x in _limit_rows(r)]
-    if not rows:
-        return []
-    above = [f"{name} {x['label']} {x['ratio']:.3g}" for name, x in rows if _above(x)]
-    out = [Goal("stated sample-time limit <= true for every form and arm", not above,
-                f"above on {len(above)} of {len(rows)}: {', '.join(above)}" if above else f"{len(rows)} limits")]
-    for form in LIMIT_FORMS:
-        ratios = [(name, x["ratio"], _above(x)) for name, x in rows if x["label"] == form and x["ratio"] == x["ratio"]]
-        if ratios:
-            far = [f"{name} {q:.3g}" for name, q, _ in ratios if q > 1.5]
-            low = min(ratios, key=lambda t: t[1])
-            out.append(Goal(f"{form}: stated within 1.5x of the true limit and never above, every arm",
-                            not far and not any(a for _, _, a in ratios),
-                            f"true / stated {low[1]:.3g} ({low[0]}) to {max(q for _, q, _ in ratios):.3g}"
-                            + (f"; beyond 1.5x: {', '.join(far)}" if far else "")))
-    return out
 
 
 def run() -> Section:

@@ -87,3 +87,25 @@ def test_the_dense_set_holds_the_grid_and_the_cyclic_joints_spins():
     assert spins == {s * k * 15.0 for k in range(1, 5) for s in (1.0, -1.0)}
     have = {(tuple(q), tuple(v)) for q, v in dense.points}
     assert all((tuple(q), tuple(v)) in have for q, v in operating_points(d))
+
+
+def test_the_corpus_table_tells_a_steady_violation_from_a_moving_one():
+    """benchmarks/corpus_limits.py: ABOVE where the stated limit is unstable at a steady point (exact), "above
+    (moving)" where only frozen-time points in motion are, and the goals fail accordingly."""
+    from types import SimpleNamespace
+
+    from benchmarks.corpus_limits import limit_goals, limits_markdown
+
+    def row(form, stated, true, steady):
+        return {"form": form, "observer": "explicit", "stated": stated, "true": true, "ratio": true / stated,
+                "rho_stated": 1.2 if stated > true else 0.9, "rho_steady": steady, "kind": "moving",
+                "worst": [[0.0, 1.0], [2.0, 0.0]]}
+
+    arm = SimpleNamespace(name="arm", joints=2, limits={"sample_time": 1e-3, "observer": "explicit", "rows": [
+        row("mpc", 2e-3, 1e-3, 1.1), row("dobc", 2e-3, 1e-3, 0.9), row("npid", 1e-3, 1.1e-3, 0.9)]})
+    text = "\n".join(limits_markdown([arm]))
+    assert "2 / 1 (0.5) ABOVE" in text and "2 / 1 (0.5) above (moving)" in text and "1 / 1.1 (1.1) |" in text
+    goals = {g.text.split(" (")[0]: g for g in limit_goals([arm])}
+    steady = goals["stated sample-time limit stable at every steady point"]
+    assert not steady.met and "arm MPC" in steady.measured and "DOBC" not in steady.measured
+    assert not goals["stated sample-time limit <= true for every form and arm"].met

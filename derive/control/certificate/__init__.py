@@ -34,8 +34,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from derive.control.certificate.decision import (FLOAT_MARGIN, Decision, Verdict, _positive_definite,  # noqa: F401
-                                                  _spectral_norm, halve_cells)
+from derive.control.certificate.decision import (FLOAT_MARGIN, CellBounds, Decision, Verdict,  # noqa: F401
+                                                  _positive_definite, _spectral_norm, halve_cells)
 from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
 from derive.control.certificate.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
 from derive.control.certificate.suprema import Suprema
@@ -211,7 +211,6 @@ class ObserverCertificate(Suprema):
             ok = lam[0] > tol
             return done(Verdict.PROVED if ok else Verdict.REFUTED, 1, float(lam[0]) if ok else None,
                         None if ok else ((), ()), float(lam[0]))
-        all_speeds = self.speeds(shape, v)                                      # V x m_full
         exact_worst = None
         if split is not None:   # the split refutes nothing: N itself at samples may
             q = self.samples(EXACT_SAMPLES, exact=True)
@@ -221,35 +220,15 @@ class ObserverCertificate(Suprema):
             if lam[i, vi] <= 0:
                 return done(Verdict.REFUTED, 0, None, exact_worst, float(lam[i, vi]))
         m, n = md.m, md.n
-        speeds = all_speeds[:, self.inner]                                      # V x m (inner)
-        # every matrix in J's diagonal scale, D^-1 N D^-1 (D^2: J's diagonal at the middle of the spans):
-        # positive definiteness is the same, an entrywise bound scales entry by entry, and a light
-        # wrist's small eigenvalues are no longer measured against the base's large variation
-        sc = np.outer(self.model.scale, self.model.scale)
-        offset = (split.majorant(all_speeds, beta, self.scale_for(W, shape)) if split is not None
-                  else np.zeros((1, n, n))) * sc
-        S = (W + W.T) * sc
+        cb = self.cell_bounds(W, shape, v, beta)
+        speeds, sc, S = cb.speeds, cb.sc, cb.S
         tol = FLOAT_MARGIN * (1 + np.linalg.norm(S, 2))
-        # T_jk bounds |d^2 N / dq_j dq_k| for every vertex: sum_i |theta'_i| |d3 J| + 2 beta |d2 J|
-        T = (np.einsum("i,ijkab->jkab", np.abs(speeds[0]), md.third) + 2.0 * beta * md.second) * sc
-        Tn = np.array([[_spectral_norm(T[j, k]) for k in range(m)] for j in range(m)])
-        # second order: the Hessian of N at the centre and T3_ijk bounding |d^3 N / dq_i dq_j dq_k|
-        fourth = getattr(md, "fourth", None) if m else None
-        T3 = None if fourth is None else (np.einsum("l,lijkab->ijkab", np.abs(speeds[0]), fourth)
-                                          + 2.0 * beta * md.third) * sc
         deltas = np.array(list(itertools.product((1.0, -1.0), repeat=m)))      # 2^m x m
         lo = np.array([span[0] for span in md.spans])
         hi = np.array([span[1] for span in md.spans])
         centres, halves = ((lo + hi) / 2)[None, :], ((hi - lo) / 2)[None, :]
         cells, margin, low, worst = 0, math.inf, math.inf, None
-        # at rate 0 the vertices come in pairs v, -v (vertex V - 1 - i is -vertex i), where |dN| and |H| are
-        # the same: their bounds are taken on the first half and mirrored
-        V = speeds.shape[0]
-        paired = beta == 0.0 and V % 2 == 0 and V > 1 and bool(np.all(speeds[::-1][:V // 2] == -speeds[:V // 2]))
-        lead = V // 2 if paired else V
-
-        def mirrored(x: np.ndarray) -> np.ndarray:
-            return np.concatenate([x, x[:, ::-1]], axis=1) if paired else x
+        lead = cb.lead
 
         # cells per batch: the Hessian's P x V' x m^2 x n^2 numbers within CELL_ELEMENTS (an 8-joint chain's
         # 512 cells x 64 vertices x 7^2 x 8^2 were 0.8 GB an array, 2.3 GB in check); the cells examined are
@@ -260,13 +239,7 @@ class ObserverCertificate(Suprema):
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
             cells += c.shape[0]
-            J, dJ, d2J, *d3J = md.jet(c, 2 if T3 is None else 3, sc)
-            # the contractions as matrix products (numpy's einsum loops took a third of the decision's time)
-            P = c.shape[0]
-            N = S[None, None] - offset[None] - (speeds @ dJ.reshape(P, m, -1)).reshape(P, -1, n, n) \
-                - 2.0 * beta * J[:, None]
-            dN = -(speeds @ d2J.reshape(P, m, -1)).reshape(P, -1, m, n, n) \
-                - 2.0 * beta * dJ[:, None]                                                     # P x V x m x n x n
+            N, dN, rem, lin = cb.terms(c, h)
             lam = np.linalg.eigvalsh(N)[..., 0]                                           # P x V
             i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
             if lam[i, vi] < low:
@@ -277,20 +250,6 @@ class ObserverCertificate(Suprema):
                 theta = tuple(float(x) for x in c[i])
                 own = float(np.linalg.eigvalsh(N[i, vi] / sc)[0])   # N itself, unscaled, for the message
                 return done(Verdict.REFUTED, cells, None, (theta, tuple(float(x) for x in speeds[vi])), own)
-            hh = (h[:, :, None] * h[:, None, :]).reshape(P, m * m)                          # h_j h_k
-            rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
-                                  lam.shape)                                                   # P x V
-            if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
-                # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
-                H = -(speeds[:lead] @ np.moveaxis(d3J[0].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
-                    .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3) \
-                    - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                          # P x V' x m^2 x n^2
-                quad = mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
-                hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)
-                cubic = _spectral_norm((hhh @ T3.reshape(m ** 3, -1)).reshape(P, n, n) / 6.0)
-                rem = np.minimum(rem, quad + cubic[:, None])
-            lin = mirrored(_spectral_norm((h[:, None, None, :] @ np.abs(dN[:, :lead]).reshape(P, -1, m, n * n))
-                                          .reshape(P, -1, n, n)))
             bound = lam - lin                                                                  # P x V
             # the vertices' minimum of the affine part is at most its value at the centre (concave): enumerate
             # them only where the cheap bound fails and the centre's own eigenvalue could still succeed
@@ -320,11 +279,23 @@ class ObserverCertificate(Suprema):
                     point = exact_worst if split is not None else (
                         tuple(float(x) for x in worst[0]), tuple(float(x) for x in speeds[worst[1]]))
                     return done(Verdict.UNPROVEN, cells, None, point, low)
-                cs, hs = c[todo], h[todo]
-                grow = np.sqrt((dN[todo] ** 2).sum(axis=(-1, -2))).max(axis=1)              # P' x m
-                kids, kid_halves = halve_cells(cs, hs, np.argmax(hs * (grow + hs @ Tn), axis=1))
+                kids, kid_halves = halve_cells(c[todo], h[todo], cb.axis(dN[todo], h[todo]))
                 centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
+
+    def cell_bounds(self, W: np.ndarray, shape, v: float, beta: float) -> CellBounds:
+        """The bounds :meth:`_decide` takes on its cells for W (n x n) on the box of scale v (the
+        speeds of its coordinates; with a split the majorant of the rest) at rate beta, every matrix
+        in J's diagonal scale D^-1 N D^-1 (D^2: J's diagonal at the middle of the spans): positive
+        definiteness is the same, an entrywise bound scales entry by entry, and a light wrist's small
+        eigenvalues are no longer measured against the base's large variation."""
+        md, split = self.target, self.split
+        W, shape = np.asarray(W, dtype=float), np.asarray(shape, dtype=float)
+        all_speeds = self.speeds(shape, v)                                      # V x m_full
+        sc = np.outer(self.model.scale, self.model.scale)
+        offset = (split.majorant(all_speeds, beta, self.scale_for(W, shape)) if split is not None
+                  else np.zeros((1, md.n, md.n))) * sc
+        return CellBounds(md, all_speeds[:, self.inner], (W + W.T) * sc, offset, beta, sc)
 
     def _decide_norm(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, done) -> Decision:
         """(*) by one matrix bound for every theta and speed (derive.control.certificate.norm_bound); a refutation

@@ -78,3 +78,64 @@ def _positive_definite(A: np.ndarray) -> np.ndarray:
             col = L[k + 1:, k] / np.where(pivot > 0, pivot, 1.0)
             L[k + 1:, k + 1:] -= col[:, None, :] * L[k, k + 1:][None, :, :]
     return ok.reshape(A.shape[:-2])
+
+
+class CellBounds:
+    """The bounds branch and bound takes on its cells (derive.control.certificate.ObserverCertificate._decide,
+    whose docstring derives them), shared with the estimate of its tree (derive.control.certificate.suprema).
+
+    md: the model decided over (an InertiaModel, or the split's SplitModel: m coordinates, n joints); speeds:
+    the box's vertices over those coordinates (V x m, rad/s, the scale included); S: W + W^T, offset: the
+    split's majorant U (1 or V x n x n, zero without a split), sc: J's diagonal scale (n x n), every matrix
+    in that scale (D^-1 N D^-1); beta: the rate [1/s]. T bounds |d^2 N / dq_j dq_k| (m x m x n x n), Tn its
+    spectral norms, T3 |d^3 N| (None without the model's fourth-derivative bounds); at rate 0 the vertices
+    come in pairs v, -v (``paired``: vertex V - 1 - i is -vertex i), where |dN| and |H| are the same: their
+    bounds are taken on the first ``lead`` vertices and mirrored."""
+
+    def __init__(self, md, speeds: np.ndarray, S: np.ndarray, offset: np.ndarray, beta: float, sc: np.ndarray):
+        m = md.m
+        self.md, self.speeds, self.S, self.offset, self.beta, self.sc = md, speeds, S, offset, beta, sc
+        self.T = (np.einsum("i,ijkab->jkab", np.abs(speeds[0]), md.third) + 2.0 * beta * md.second) * sc
+        self.Tn = np.array([[_spectral_norm(self.T[j, k]) for k in range(m)] for j in range(m)])
+        fourth = getattr(md, "fourth", None) if m else None
+        self.T3 = None if fourth is None else (np.einsum("l,lijkab->ijkab", np.abs(speeds[0]), fourth)
+                                               + 2.0 * beta * md.third) * sc
+        V = speeds.shape[0]
+        self.paired = beta == 0.0 and V % 2 == 0 and V > 1 and bool(np.all(speeds[::-1][:V // 2] == -speeds[:V // 2]))
+        self.lead = V // 2 if self.paired else V
+
+    def mirrored(self, x: np.ndarray) -> np.ndarray:
+        """A bound of the first ``lead`` vertices (P x lead) for all of them (P x V)."""
+        return np.concatenate([x, x[:, ::-1]], axis=1) if self.paired else x
+
+    def terms(self, c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """On the cells of centres c and half-widths h (P x m): N at the centres (P x V x n x n), dN/dq there
+        (P x V x m x n x n), the Taylor remainder's bound rem and the linear term's lin (P x V each)."""
+        md, speeds, beta, T, T3, lead = self.md, self.speeds, self.beta, self.T, self.T3, self.lead
+        m, n, P = md.m, md.n, c.shape[0]
+        J, dJ, d2J, *d3J = md.jet(c, 2 if T3 is None else 3, self.sc)
+        # the contractions as matrix products (numpy's einsum loops took a third of the decision's time)
+        N = self.S[None, None] - self.offset[None] - (speeds @ dJ.reshape(P, m, -1)).reshape(P, -1, n, n) \
+            - 2.0 * beta * J[:, None]
+        dN = -(speeds @ d2J.reshape(P, m, -1)).reshape(P, -1, m, n, n) \
+            - 2.0 * beta * dJ[:, None]                                                     # P x V x m x n x n
+        hh = (h[:, :, None] * h[:, None, :]).reshape(P, m * m)                              # h_j h_k
+        rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
+                              N.shape[:2])                                                     # P x V
+        if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
+            # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
+            H = -(speeds[:lead] @ np.moveaxis(d3J[0].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
+                .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3) \
+                - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                              # P x V' x m^2 x n^2
+            quad = self.mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
+            hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)
+            cubic = _spectral_norm((hhh @ T3.reshape(m ** 3, -1)).reshape(P, n, n) / 6.0)
+            rem = np.minimum(rem, quad + cubic[:, None])
+        lin = self.mirrored(_spectral_norm((h[:, None, None, :] @ np.abs(dN[:, :lead]).reshape(P, -1, m, n * n))
+                                           .reshape(P, -1, n, n)))
+        return N, dN, rem, lin
+
+    def axis(self, dN: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """The coordinate each cell (dN and h of :meth:`terms`' cells) is halved along: its widest contribution."""
+        grow = np.sqrt((dN ** 2).sum(axis=(-1, -2))).max(axis=1)                            # P x m
+        return np.argmax(h * (grow + h @ self.Tn), axis=1)

@@ -49,13 +49,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from derive.control.certificate import Decision, InertiaModel, ObserverCertificate, Verdict
+from derive.control.certificate.suprema import TreeEstimate
 
 MARGIN = 1.3         # omega over the smallest the certificate's numeric supremum allows
-RAISE = 1.3          # omega's factor when the sound decision does not prove it within BUDGET cells
-TRIES = 8
+RAISE = 1.3          # omega's least factor after a try that did not prove within FIRST_BUDGET cells
+TRIES = 8            # certificate decisions at most
 USABLE = 1e-4        # s: below this sample time the starter takes the implicit observer step where it allows more
-FIRST_BUDGET = 20_000   # cells of the first try (derive check's budget: what proves here proves there)
-BUDGET = 5000        # cells of each later try (omega raised: fewer cells needed)
+FIRST_BUDGET = 20_000   # cells of a try (derive check's budget: what proves here proves there, the same decision)
+PROBE = 2048         # cells of the first try (the trees of most arms; a proof here is the one FIRST_BUDGET makes)
+TARGET = FIRST_BUDGET // 2   # estimated cells of the omega chosen when the first omega does not prove
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
 HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
 STATED_HEADROOM = 0.5   # ... and at most this fraction of the smallest limit derive show states (fit_to_limits)
@@ -101,7 +103,22 @@ def round_sample_time(x: float) -> float:
     return float(f"{10.0 ** (k - 1) * 5:.3g}")
 
 
-def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: int = BUDGET) -> StarterGain:
+def _next_try(cert: ObserverCertificate, Jbar: np.ndarray, box: np.ndarray, start: float, omega: float, budget: int,
+              dec: Decision, tree: TreeEstimate | None) -> tuple[float, int, TreeEstimate | None]:
+    """(omega [1/s], cell budget, tree estimate) of the try after the one at ``omega`` within ``budget`` cells whose
+    decision ``dec`` did not prove (module docstring); ``start``: the first try's omega."""
+    if tree is None and dec.verdict is Verdict.UNPROVEN and not cert.norm and cert.target.m > 0:
+        tree = cert.tree_estimate(Jbar, box, start, start * RAISE ** TRIES, FIRST_BUDGET)
+    short = budget < FIRST_BUDGET   # the probe ran out of cells
+    if short and tree is not None and tree.cells(omega) <= FIRST_BUDGET:
+        return omega, FIRST_BUDGET, tree   # omega itself within derive check's budget, as estimated
+    ahead = tree.smallest(TARGET, above=omega) if tree is not None else None
+    # past a failure on the whole budget (the estimate was short) or a refutation at sampled points: RAISE at least
+    least = omega if short and ahead is not None else omega * RAISE
+    return max(ahead or 0.0, least), FIRST_BUDGET, tree
+
+
+def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0) -> StarterGain:
     """W = omega Jbar certified on ``box`` (n speeds, rad/s or m/s), and the sample time (module docstring).
     ``momentum_gain``: the largest K_i of the momentum observer [1/s]."""
     start = time.perf_counter()
@@ -118,15 +135,15 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0, budget: 
     need = MARGIN / sup if sup > 0 and math.isfinite(sup) else 0.0
     omega = max(FLOOR / middle, need)
     floor = omega > need
+    start, tree, budget = omega, None, PROBE
     for attempt in range(TRIES):
-        if attempt:
-            omega *= RAISE
         W = np.array([[_round(omega * x) for x in row] for row in Jbar])
         W = (W + W.T) / 2
-        dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET if attempt == 0 else budget)
-        if dec.verdict is Verdict.PROVED:
+        dec = cert.decide(W, box, 1.0, 0.0, budget)
+        if dec.verdict is Verdict.PROVED or attempt == TRIES - 1:
             break
-    if dec.verdict is not Verdict.PROVED:   # the decision derive check makes (its budget): the file states that one
+        omega, budget, tree = _next_try(cert, Jbar, box, start, omega, budget, dec, tree)
+    if dec.verdict is not Verdict.PROVED and budget < FIRST_BUDGET:   # the decision derive check makes (its budget)
         dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET)
     lam = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, W, Li))      # eigenvalues of W J^-1
     rates = (float(lam[:, 0].min()), float(lam[:, -1].max()))

@@ -34,8 +34,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from derive.control.certificate.decision import (FLOAT_MARGIN, CellBounds, Decision, Verdict,  # noqa: F401
-                                                  _positive_definite, _spectral_norm, halve_cells)
+from derive.control.certificate.decision import (FLOAT_MARGIN, MAX_ENUMERATED, CellBounds, Decision,  # noqa: F401
+                                                  Verdict, _positive_definite, _spectral_norm, halve_cells)
 from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
 from derive.control.certificate.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
 from derive.control.certificate.suprema import Suprema
@@ -44,7 +44,6 @@ from derive.control.certificate.split import MAX_INNER, SplitModel, split_model
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
 
 DEFAULT_BUDGET = 20_000   # cells per decision
-MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
 CELL_ELEMENTS = 1 << 22     # numbers of the largest per-batch array of a decision (the Hessian term)
 

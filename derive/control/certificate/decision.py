@@ -9,6 +9,7 @@ from enum import Enum
 import numpy as np
 
 FLOAT_MARGIN = 1e-9   # relative to 1 + ||W + W^T||: covers eigvalsh's rounding (~ n eps ||N||)
+MAX_ENUMERATED = 4    # cells' vertices are enumerated for m <= this (2^m affine corners)
 
 
 class Verdict(str, Enum):

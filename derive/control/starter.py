@@ -139,7 +139,7 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0) -> Start
     for attempt in range(TRIES):
         W = np.array([[_round(omega * x) for x in row] for row in Jbar])
         W = (W + W.T) / 2
-        dec = cert.decide(W, box, 1.0, 0.0, budget)
+        dec = cert.decide(W, box, 1.0, 0.0, budget, where=budget >= FIRST_BUDGET)   # a probe states no point
         if dec.verdict is Verdict.PROVED or attempt == TRIES - 1:
             break
         omega, budget, tree = _next_try(cert, Jbar, box, start, omega, budget, dec, tree)

@@ -68,6 +68,7 @@ class ObserverCertificate(Suprema):
         not on a shape that holds a joint J depends on at rest (0: the stage weighs the vertices by
         1 / shape)."""
         self.model = model
+        self._exact = None   # _decide's samples of N itself (with a split) and J's derivatives there
         m = model.m
         self.split: SplitModel | None = None
         self.wider: ObserverCertificate | None = None
@@ -102,16 +103,17 @@ class ObserverCertificate(Suprema):
         return v * signs * np.array([shape[c.index] for c in self.model.deps])[None, :]
 
     def matrices(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, q: np.ndarray,
-                 exact: bool = False) -> np.ndarray:
+                 exact: bool = False, jets: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """N at every box vertex for points q: N x 2^m x n x n. With a split and not ``exact``: the
         sound lower bound N_A - U(v) of derive.control.certificate.split at inner points q (N x m_inner); else
-        N itself at points q (N x m)."""
+        N itself at points q (N x m). ``jets``: (dJ, J) of the model at q when the caller has them."""
         split = None if exact else self.split
         md = self.model if split is None else split
         S = W + W.T
         speeds = self.speeds(shape, v, exact)
-        Jdot = np.einsum("vk,pkij->pvij", speeds[:, self.inner] if split is not None else speeds, md.dJ(q))
-        N = S[None, None] - Jdot - 2.0 * beta * md.J(q)[:, None]
+        dJ, J = (md.dJ(q), md.J(q)) if jets is None else jets
+        Jdot = np.einsum("vk,pkij->pvij", speeds[:, self.inner] if split is not None else speeds, dJ)
+        N = S[None, None] - Jdot - 2.0 * beta * J[:, None]
         return N if split is None else N - split.majorant(speeds, beta, self.scale_for(W, shape))[None]
 
     def scale_for(self, W: np.ndarray, shape) -> str:
@@ -214,18 +216,21 @@ class ObserverCertificate(Suprema):
                         None if ok else ((), ()), float(lam[0]))
         exact_point = None
         if split is not None:   # the split refutes nothing: N itself at samples may
-            q = self.samples(EXACT_SAMPLES, exact=True)
+            if self._exact is None:   # the samples and J's derivatives there, the same for every decision
+                q = self.samples(EXACT_SAMPLES, exact=True)
+                self._exact = (q, (self.model.dJ(q), self.model.J(q)))
+            q, jets = self._exact
 
             def exact_point(A=None):   # the sample and vertex of N's smallest eigenvalue, and that eigenvalue
                 if A is None and not where:
                     return None, None
-                lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, exact=True) if A is None else A)[..., 0]
+                lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, True, jets) if A is None else A)[..., 0]
                 i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
                 return (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi])), lam[i, vi]
 
             # a Cholesky test above the floating-point margin first (7 times cheaper than the eigenvalues): where it
             # passes every eigenvalue is positive, and the smallest is wanted only for an unproven claim's point
-            A = self.matrices(W, shape, v, beta, q, exact=True)
+            A = self.matrices(W, shape, v, beta, q, True, jets)
             if not _positive_definite(A - tol * np.eye(A.shape[-1])).all():
                 point, least = exact_point(A)
                 if least <= 0:

@@ -73,6 +73,15 @@ def pair_parts(full: InertiaModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return rep, 2.0 * (absolute(coef[rep].real) + absolute(coef[rep].imag))
 
 
+def coefficient_norms(full: InertiaModel) -> np.ndarray:
+    """The Frobenius norm of every C_f of J's series (K), computed once per model (every split tried shares it)."""
+    norms = getattr(full, "_coefficient_norms", None)
+    if norms is None:
+        coef = full.fourier[0]
+        norms = full._coefficient_norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))
+    return norms
+
+
 def both_parts(full: InertiaModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """:func:`pair_parts` in J's scale ("J") and in the identity's ("I")."""
     return {"J": pair_parts(full, metric(full)), "I": pair_parts(full, np.eye(full.n))}
@@ -115,8 +124,7 @@ class SplitModel:
         rest = ~keep[rep]
         self._rest_F = F[rep[rest]].astype(float)                                   # P x m_full
         self._rest_abs = {key: absolute[rest] for key, (_, absolute) in parts.items()}   # P x n x n each
-        norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))                       # Frobenius of every C_f
-        self._all_F, self._all_norm = F.astype(float), norms
+        self._all_F, self._all_norm = F.astype(float), coefficient_norms(full)
         self._keep = keep
         self._bounds: tuple[np.ndarray, ...] | None = None
 

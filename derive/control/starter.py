@@ -49,15 +49,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from derive.control.certificate import Decision, InertiaModel, ObserverCertificate, Verdict
-from derive.control.certificate.suprema import TreeEstimate
 
 MARGIN = 1.3         # omega over the smallest the certificate's numeric supremum allows
 RAISE = 1.3          # omega's least factor after a try that did not prove within FIRST_BUDGET cells
 TRIES = 8            # certificate decisions at most
 USABLE = 1e-4        # s: below this sample time the starter takes the implicit observer step where it allows more
 FIRST_BUDGET = 20_000   # cells of a try (derive check's budget: what proves here proves there, the same decision)
-PROBE = 2048         # cells of the first try (the trees of most arms; a proof here is the one FIRST_BUDGET makes)
-TARGET = FIRST_BUDGET // 2   # estimated cells of the omega chosen when the first omega does not prove
+ACCEPT = 1.25        # the first omega is decided when its tree is estimated within ACCEPT x FIRST_BUDGET cells
+TARGET = FIRST_BUDGET // 2   # else the omega decided is the smallest whose tree is estimated within TARGET cells
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
 HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
 STATED_HEADROOM = 0.5   # ... and at most this fraction of the smallest limit derive show states (fit_to_limits)
@@ -103,19 +102,34 @@ def round_sample_time(x: float) -> float:
     return float(f"{10.0 ** (k - 1) * 5:.3g}")
 
 
-def _next_try(cert: ObserverCertificate, Jbar: np.ndarray, box: np.ndarray, start: float, omega: float, budget: int,
-              dec: Decision, tree: TreeEstimate | None) -> tuple[float, int, TreeEstimate | None]:
-    """(omega [1/s], cell budget, tree estimate) of the try after the one at ``omega`` within ``budget`` cells whose
-    decision ``dec`` did not prove (module docstring); ``start``: the first try's omega."""
-    if tree is None and dec.verdict is Verdict.UNPROVEN and not cert.norm and cert.target.m > 0:
-        tree = cert.tree_estimate(Jbar, box, start, start * RAISE ** TRIES, FIRST_BUDGET)
-    short = budget < FIRST_BUDGET   # the probe ran out of cells
-    if short and tree is not None and tree.cells(omega) <= FIRST_BUDGET:
-        return omega, FIRST_BUDGET, tree   # omega itself within derive check's budget, as estimated
-    ahead = tree.smallest(TARGET, above=omega) if tree is not None else None
-    # past a failure on the whole budget (the estimate was short) or a refutation at sampled points: RAISE at least
-    least = omega if short and ahead is not None else omega * RAISE
-    return max(ahead or 0.0, least), FIRST_BUDGET, tree
+def _rounded(Jbar: np.ndarray, omega: float) -> np.ndarray:
+    """omega Jbar with DIGITS significant digits, as the file writes it (symmetric: Jbar is)."""
+    W = np.array([[_round(omega * x) for x in row] for row in Jbar])
+    return (W + W.T) / 2
+
+
+def _search(cert: ObserverCertificate, Jbar: np.ndarray, box: np.ndarray, start: float) -> tuple[float, np.ndarray, Decision]:
+    """(omega [1/s], W as written, its decision) of the certificate's search from ``start`` (module docstring)."""
+    tree = None
+    if not cert.norm and cert.target.m > 0 and not cert.model.unbounded:
+        tree = cert.tree_estimate(Jbar, box, start, ACCEPT * FIRST_BUDGET)
+    highest = start * RAISE ** TRIES
+
+    def ahead(omega: float) -> float | None:   # the smallest omega above, estimated within TARGET (else the budget)
+        return tree.smallest(TARGET, omega, highest) or tree.smallest(FIRST_BUDGET, omega, highest)
+
+    omega = start
+    if tree is not None and tree.cells(start) > ACCEPT * FIRST_BUDGET:
+        omega = ahead(start) or start * RAISE
+    for attempt in range(TRIES):
+        W = _rounded(Jbar, omega)
+        dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET)
+        if dec.verdict is Verdict.PROVED or attempt == TRIES - 1:
+            break
+        # not within the budget though estimated so (or refuted at a point the samples missed): at least RAISE more
+        more = ahead(omega) if tree is not None and dec.verdict is Verdict.UNPROVEN else None
+        omega = max(more or 0.0, omega * RAISE)
+    return omega, W, dec
 
 
 def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0) -> StarterGain:
@@ -135,16 +149,7 @@ def starter_gain(model: InertiaModel, box, momentum_gain: float = 50.0) -> Start
     need = MARGIN / sup if sup > 0 and math.isfinite(sup) else 0.0
     omega = max(FLOOR / middle, need)
     floor = omega > need
-    start, tree, budget = omega, None, PROBE
-    for attempt in range(TRIES):
-        W = np.array([[_round(omega * x) for x in row] for row in Jbar])
-        W = (W + W.T) / 2
-        dec = cert.decide(W, box, 1.0, 0.0, budget, where=budget >= FIRST_BUDGET)   # a probe states no point
-        if dec.verdict is Verdict.PROVED or attempt == TRIES - 1:
-            break
-        omega, budget, tree = _next_try(cert, Jbar, box, start, omega, budget, dec, tree)
-    if dec.verdict is not Verdict.PROVED and budget < FIRST_BUDGET:   # the decision derive check makes (its budget)
-        dec = cert.decide(W, box, 1.0, 0.0, FIRST_BUDGET)
+    omega, W, dec = _search(cert, Jbar, box, omega)
     lam = np.linalg.eigvalsh(np.einsum("pab,bc,pdc->pad", Li, W, Li))      # eigenvalues of W J^-1
     rates = (float(lam[:, 0].min()), float(lam[:, -1].max()))
     observer = 0.9 * 2.0 / rates[1]

@@ -162,17 +162,15 @@ class ObserverCertificate(Suprema):
 
     # -- the sound decision ------------------------------------------------------------------
     def decide(self, W: np.ndarray, shape, v: float, beta: float = 0.0, budget: int = DEFAULT_BUDGET,
-               batch: int = 512, where: bool = True) -> Decision:
+               batch: int = 512) -> Decision:
         """(*) for W (n x n, N m s/rad) on the box |theta'_k| <= v shape_k (rad/s) at rate beta
         (1/s): :meth:`_decide`, then, when unproven, the ``wider`` split's (each with ``budget``
-        cells; the decision counts the cells and the time of both). Without ``where`` an unproven claim
-        of the split states no point (None: the smallest eigenvalue of N at its samples is not sought;
-        0.2 s on 7 joints); every other field is the same."""
-        first = self._decide(W, shape, v, beta, budget, batch, where)
+        cells; the decision counts the cells and the time of both)."""
+        first = self._decide(W, shape, v, beta, budget, batch)
         if first.verdict is not Verdict.UNPROVEN or self.wider is None:
             result = first
         else:
-            second = self.wider._decide(W, shape, v, beta, budget, batch, where)
+            second = self.wider._decide(W, shape, v, beta, budget, batch)
             both = {"cells": first.cells + second.cells, "seconds": first.seconds + second.seconds}
             result = replace(second if second.verdict is Verdict.PROVED else first, **both)
         if result.verdict is not Verdict.UNPROVEN or not self._grouped_for(shape, beta):
@@ -182,7 +180,7 @@ class ObserverCertificate(Suprema):
         return replace(third if third.verdict is Verdict.PROVED else result, **every)
 
     def _decide(self, W: np.ndarray, shape, v: float, beta: float = 0.0, budget: int = DEFAULT_BUDGET,
-                batch: int = 512, where: bool = True) -> Decision:
+                batch: int = 512) -> Decision:
         """Branch and bound over the deps' spans: proved, refuted or unproven (module docstring).
 
         On a cell (centre c, half-widths r), for each box vertex: Taylor's theorem per entry gives
@@ -222,8 +220,6 @@ class ObserverCertificate(Suprema):
             q, jets = self._exact
 
             def exact_point(A=None):   # the sample and vertex of N's smallest eigenvalue, and that eigenvalue
-                if A is None and not where:
-                    return None, None
                 lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, True, jets) if A is None else A)[..., 0]
                 i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
                 return (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi])), lam[i, vi]

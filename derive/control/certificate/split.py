@@ -127,6 +127,7 @@ class SplitModel:
         self._all_F, self._all_norm = F.astype(float), coefficient_norms(full)
         self._keep = keep
         self._bounds: tuple[np.ndarray, ...] | None = None
+        self._products: dict = {}   # _weighted's coefficient matrices per (weights, scale)
 
     @property
     def second(self) -> np.ndarray:
@@ -153,13 +154,20 @@ class SplitModel:
         matrix product (N x 2K by 2K x W n(n+1)/2: half the work of the complex one it replaced)."""
         phase = q @ self._F.T                                               # N x K
         K, up = self._F.shape[0], self._AB.shape[1]
-        AB = self._AB if scale is None else self._AB * scale[np.triu_indices(self.n)][None]
-        A, B = AB[:K], AB[K:]
-        wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
-        # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
-        # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper triangle
-        M = np.concatenate([wr * A[:, None] - wi * B[:, None],
-                            -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+        key = (weights.tobytes(), None if scale is None else scale.tobytes())
+        M = self._products.get(key)
+        if M is None:   # the same weights and scale at every batch of a decision: made once
+            AB = self._AB if scale is None else self._AB * scale[np.triu_indices(self.n)][None]
+            A, B = AB[:K], AB[K:]
+            wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
+            # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
+            # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper
+            # triangle
+            M = np.concatenate([wr * A[:, None] - wi * B[:, None],
+                                -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+            if len(self._products) > 8:
+                self._products.clear()
+            self._products[key] = M
         out = np.concatenate([np.cos(phase), np.sin(phase)], axis=1) @ M
         return out.reshape(phase.shape[0], weights.shape[0], up)[..., self._mirror]
 

@@ -1,58 +1,16 @@
 """The numeric estimates of the observer certificate (derive.control.certificate): the largest speed box and
 rate at which N = W + W^T - J'(theta, theta') - 2 beta J stays positive definite at sampled configurations
 (the figures a proved box is compared with), computed in batches of at most ELEMENTS numbers; and the size
-of the branch and bound's tree for W = omega D at rate 0 as omega varies (:class:`TreeEstimate`)."""
+of the branch and bound's tree for W = omega D at rate 0 as omega varies
+(derive.control.certificate.decision.TreeEstimate)."""
 from __future__ import annotations
 
-import itertools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from derive.control.certificate.decision import MAX_ENUMERATED
+from derive.control.certificate.decision import TreeEstimate, estimate_tree
 from derive.control.certificate.norm_bound import ELEMENTS, norm_rate_bound, norm_speed_bound, sample_count
-
-TREE_PATHS = 32   # random root-to-leaf paths of the tree estimate (Knuth's estimator: each gives an unbiased count)
-
-
-@dataclass(frozen=True)
-class TreeEstimate:
-    """Knuth's estimate of the cells branch and bound (ObserverCertificate._decide) examines for W = omega D
-    at rate 0 on a box (D. E. Knuth, Estimation of the size of a backtrack tree, Math. Comp. 29, 1975): along
-    random paths from the root, each step to one of the two halves at random, a cell at level d stands for
-    the 2^d cells of its level, so sum_d 2^d [the path's cells above level d are all split] is an unbiased
-    count of the tree. ``scales`` (paths x levels) [1/s]: the smallest omega at which each path's cell at
-    each level passes the decision's own test (the same bounds, derive.control.certificate.decision.CellBounds;
-    up to its floating-point margin), inf where the path was not followed (it passed at ``lowest``, or lay past
-    the levels followed). A decision that examines no more cells than its budget proves; this estimate only
-    chooses which omega to decide, it proves nothing."""
-
-    scales: np.ndarray
-    lowest: float
-
-    def cells(self, omega: float) -> float:
-        """The estimated cells examined at omega (>= ``lowest``; inf when a path needs more levels than followed)."""
-        passed = self.scales <= omega
-        first = np.where(passed.any(axis=1), passed.argmax(axis=1), -1)
-        if np.any(first < 0):
-            return math.inf
-        return float(np.mean(2.0 ** (first + 1) - 1.0))
-
-    def smallest(self, cells: float, above: float = 0.0) -> float | None:
-        """The smallest omega > ``above`` (and >= ``lowest``) whose estimate is at most ``cells`` (None: none of the
-        omegas where the estimate changes, up to the largest followed)."""
-        marks = np.unique(np.concatenate([[self.lowest], self.scales[np.isfinite(self.scales)]]))
-        marks = marks[(marks >= self.lowest) & (marks > above)]
-        left, right = 0, marks.size   # the estimate does not grow with omega: bisection for the first within ``cells``
-        while left < right:
-            mid = (left + right) // 2
-            if self.cells(float(marks[mid])) <= cells:
-                right = mid
-            else:
-                left = mid + 1
-        return float(marks[left]) if left < marks.size else None
-
 
 class Suprema:
     """Mixin of ObserverCertificate: speed_supremum and rate_supremum (it supplies model, split, signs,
@@ -112,59 +70,13 @@ class Suprema:
                 top = max(top, np.linalg.eigvalsh(Li[:, None] @ K @ LiT)[..., -1].max())
         return math.inf if top <= 0 else float(1.0 / top)
 
-    def tree_estimate(self, D, shape, lowest: float, highest: float, cells: float, seed: int = 0) -> TreeEstimate:
-        """:class:`TreeEstimate` of the decisions for W = omega D (n x n, D + D^T positive definite) on the box
-        ``shape`` (rad/s, scale 1) at rate 0, for omega in [lowest, highest] [1/s], over the levels whose cells
-        number at most ``cells``. At rate 0 N = omega (D + D^T) - X(theta, theta') with X free of omega, and a
-        cell passes when lambda_min(N) - rem > 0 at each of its vertices' corners (the enumeration, m <=
-        MAX_ENUMERATED) or at its centre less the linear term (past it): omega > lambda_max(L^-1 (X + r I) L^-T)
-        for each, L L^T = D + D^T. The centre's value (at most the corners', lambda_min being concave) comes
-        first, the corners only where it is below ``highest``."""
+    def tree_estimate(self, D, shape, lowest: float, cells: float) -> TreeEstimate:
+        """derive.control.certificate.decision.TreeEstimate of the decisions for W = omega D (n x n, D + D^T
+        positive definite; omega >= ``lowest`` [1/s]) on the box ``shape`` (rad/s, scale 1) at rate 0, over the
+        levels of at most about ``cells`` cells: the decision's own bounds (:meth:`cell_bounds`)."""
         if self.norm or self.model.unbounded or self.target.m == 0:
             raise ValueError("tree_estimate: expected a branch and bound over at least one coordinate")
-        md = self.target
-        cb = self.cell_bounds(D, shape, 1.0, 0.0)   # the split's majorant as W = omega D takes it (scale_for)
-        Li = np.linalg.inv(np.linalg.cholesky(cb.S))
-        cb.S = np.zeros_like(cb.S)                   # terms' N is then -X
-        m, n = md.m, md.n
-        deltas = np.array(list(itertools.product((1.0, -1.0), repeat=m)))
-        lo = np.array([span[0] for span in md.spans])
-        hi = np.array([span[1] for span in md.spans])
-        levels = math.ceil(math.log2(max(cells, 2))) + 1
-        rng = np.random.default_rng(seed)
-        centres = np.repeat(((lo + hi) / 2)[None], TREE_PATHS, axis=0)
-        halves = np.repeat(((hi - lo) / 2)[None], TREE_PATHS, axis=0)
-        scales = np.full((TREE_PATHS, levels), math.inf)
-        live = np.arange(TREE_PATHS)
-
-        def top(X: np.ndarray) -> np.ndarray:
-            return np.linalg.eigvalsh(Li @ X @ Li.T)[..., -1]
-
-        for level in range(levels):
-            c, h = centres[live], halves[live]
-            N, dN, rem, lin = cb.terms(c, h)                     # N = -X (S = 0)
-            eye = np.eye(n)
-            if m <= MAX_ENUMERATED:
-                at = top(-N + rem[..., None, None] * eye).max(axis=1)
-                near = np.flatnonzero(at < highest)
-                if near.size:
-                    corners = np.einsum("dk,pk,pvkab->pvdab", deltas, h[near], dN[near])
-                    X = -(N[near][:, :, None] + corners) + rem[near][:, :, None, None, None] * eye
-                    at[near] = top(X).max(axis=(1, 2))
-            else:
-                at = top(-N + (lin + rem)[..., None, None] * eye).max(axis=1)
-            scales[live, level] = at
-            axis = cb.axis(dN, h)
-            rows = np.arange(live.size)
-            h = h.copy()
-            h[rows, axis] /= 2
-            c = c.copy()
-            c[rows, axis] += np.where(rng.random(live.size) < 0.5, -1.0, 1.0) * h[rows, axis]
-            centres[live], halves[live] = c, h
-            live = live[at > lowest]
-            if not live.size:
-                break
-        return TreeEstimate(scales, lowest)
+        return estimate_tree(self.cell_bounds(D, shape, 1.0, 0.0), self.target.spans, lowest, cells)
 
     def rate_supremum(self, W, shape, v: float, count: int = 4096, exact: bool = False) -> float:
         """Numeric estimate of the largest beta for which (*) holds on the box of scale v:

@@ -252,7 +252,7 @@ class ObserverCertificate(Suprema):
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
             cells += c.shape[0]
-            N, dN, rem, lin = cb.terms(c, h)
+            N, dN, floor, state = cb.centre(c, h)
             lam = np.linalg.eigvalsh(N)[..., 0]                                           # P x V
             i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
             if lam[i, vi] < low:
@@ -263,11 +263,21 @@ class ObserverCertificate(Suprema):
                 theta = tuple(float(x) for x in c[i])
                 own = float(np.linalg.eigvalsh(N[i, vi] / sc)[0])   # N itself, unscaled, for the message
                 return done(Verdict.REFUTED, cells, None, (theta, tuple(float(x) for x in speeds[vi])), own)
+            # the second-order remainder and the linear term only in cells the remainder's lower bound leaves
+            # alive: elsewhere a vertex fails for sure (lam - rem <= tol), so rem's first form (an upper bound) and
+            # lin = inf stand in, and no vertex of the cell is enumerated
+            rem = np.broadcast_to(state[5][:, None], lam.shape).copy()
+            lin = np.full(lam.shape, np.inf)
+            rows = np.flatnonzero(lam.min(axis=1) > floor + tol)
+            if rows.size:
+                rem[rows], lin[rows] = cb.finish(state, rows)
             bound = lam - lin                                                                  # P x V
             # the vertices' minimum of the affine part is at most its value at the centre (concave): enumerate
-            # them only where the cheap bound fails and the centre's own eigenvalue could still succeed
-            hard = np.argwhere((bound - rem <= tol) & (lam - rem > tol)) if m <= MAX_ENUMERATED \
-                else np.zeros((0, 2), int)
+            # them only where the cheap bound fails and the centre's own eigenvalue could still succeed, in cells
+            # where no vertex fails for sure (lam - rem <= tol: such a cell is split whatever the others give)
+            alive = lam - rem > tol
+            hard = np.argwhere((bound - rem <= tol) & alive & alive.all(axis=1, keepdims=True)) \
+                if m <= MAX_ENUMERATED else np.zeros((0, 2), int)
             # there, first a Cholesky test at each vertex (9 times cheaper than its eigenvalues), shifted by half
             # the centre's slack (an upper bound of the vertices'); the eigenvalues of those that fail it
             step = max(1, 2 ** 21 // (deltas.shape[0] * n * n))

@@ -114,7 +114,14 @@ class CellBounds:
     def terms(self, c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """On the cells of centres c and half-widths h (P x m): N at the centres (P x V x n x n), dN/dq there
         (P x V x m x n x n), the Taylor remainder's bound rem and the linear term's lin (P x V each)."""
-        md, speeds, beta, T, T3, lead = self.md, self.speeds, self.beta, self.T, self.T3, self.lead
+        N, dN, _, state = self.centre(c, h)
+        rem, lin = self.finish(state, np.arange(c.shape[0]))
+        return N, dN, rem, lin
+
+    def centre(self, c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
+        """:meth:`terms`' N and dN, a lower bound of rem for each cell (P: the smaller of the remainder's first
+        form and the cubic term of its second), and what :meth:`finish` takes."""
+        md, speeds, beta, T, T3 = self.md, self.speeds, self.beta, self.T, self.T3
         m, n, P = md.m, md.n, c.shape[0]
         J, dJ, d2J, *d3J = md.jet(c, 2 if T3 is None else 3, self.sc)
         # the contractions as matrix products (numpy's einsum loops took a third of the decision's time)
@@ -124,21 +131,31 @@ class CellBounds:
         if beta:
             N, dN = N - 2.0 * beta * J[:, None], dN - 2.0 * beta * dJ[:, None]
         hh = (h[:, :, None] * h[:, None, :]).reshape(P, m * m)                              # h_j h_k
-        rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
-                              N.shape[:2])                                                     # P x V
+        rem = _spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))              # P
+        cubic = None
         if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
-            # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
-            H = -(speeds[:lead] @ np.moveaxis(d3J[0].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
-                .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3)                        # P x V' x m^2 x n^2
-            if beta:
-                H = H - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)
-            quad = self.mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
             hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)
             cubic = _spectral_norm((hhh @ T3.reshape(m ** 3, -1)).reshape(P, n, n) / 6.0)
-            rem = np.minimum(rem, quad + cubic[:, None])
+        floor = rem if cubic is None else np.minimum(rem, cubic)
+        return N, dN, floor, (h, hh, dN, d2J, d3J, rem, cubic)
+
+    def finish(self, state: tuple, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """rem and lin (len(rows) x V) of the cells ``rows`` of :meth:`centre`'s."""
+        h, hh, dN, d2J, d3J, rem, cubic = state
+        h, hh, dN, rem = h[rows], hh[rows], dN[rows], rem[rows]
+        speeds, beta, lead, m, n, P = self.speeds, self.beta, self.lead, self.md.m, self.md.n, rows.size
+        rem = np.broadcast_to(rem[:, None], dN.shape[:2])                                     # P x V
+        if cubic is not None:
+            # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
+            H = -(speeds[:lead] @ np.moveaxis(d3J[0][rows].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
+                .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3)                        # P x V' x m^2 x n^2
+            if beta:
+                H = H - 2.0 * beta * d2J[rows].reshape(P, 1, m * m, n * n)
+            quad = self.mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
+            rem = np.minimum(rem, quad + cubic[rows][:, None])
         lin = self.mirrored(_spectral_norm((h[:, None, None, :] @ np.abs(dN[:, :lead]).reshape(P, -1, m, n * n))
                                            .reshape(P, -1, n, n)))
-        return N, dN, rem, lin
+        return rem, lin
 
     def axis(self, dN: np.ndarray, h: np.ndarray) -> np.ndarray:
         """The coordinate each cell (dN and h of :meth:`terms`' cells) is halved along: its widest contribution."""

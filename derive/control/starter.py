@@ -56,7 +56,7 @@ TRIES = 8            # certificate decisions at most
 USABLE = 1e-4        # s: below this sample time the starter takes the implicit observer step where it allows more
 FIRST_BUDGET = 20_000   # cells of a try (derive check's budget: what proves here proves there, the same decision)
 ACCEPT = 1.25        # the first omega is decided when its tree is estimated within ACCEPT x FIRST_BUDGET cells
-TARGET = FIRST_BUDGET // 2   # else the omega decided is the smallest whose tree is estimated within TARGET cells
+TARGET = 8192        # else the omega decided is the smallest whose tree is estimated within TARGET cells
 FLOOR = 20.0         # 1/s: the rates' geometric mean at least (the predictive law with T2 = 0.2 s: poles near 9 rad/s)
 HEADROOM = 0.45      # the sample time written is at most this fraction of the smallest estimated limit
 STATED_HEADROOM = 0.5   # ... and at most this fraction of the smallest limit derive show states (fit_to_limits)

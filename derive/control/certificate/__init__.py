@@ -112,7 +112,9 @@ class ObserverCertificate(Suprema):
         S = W + W.T
         speeds = self.speeds(shape, v, exact)
         dJ, J = (md.dJ(q), md.J(q)) if jets is None else jets
-        Jdot = np.einsum("vk,pkij->pvij", speeds[:, self.inner] if split is not None else speeds, dJ)
+        P, n = dJ.shape[0], dJ.shape[-1]
+        lead = speeds[:, self.inner] if split is not None else speeds
+        Jdot = (lead @ dJ.reshape(P, lead.shape[1], n * n)).reshape(P, -1, n, n)   # einsum's loop: 0.08 s of 576 x 64
         N = S[None, None] - Jdot - 2.0 * beta * J[:, None]
         return N if split is None else N - split.majorant(speeds, beta, self.scale_for(W, shape))[None]
 

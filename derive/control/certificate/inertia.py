@@ -268,16 +268,21 @@ class InertiaModel:
                  for L, p in zip(sizes, poly)]
         axes = [mid[k] + half[k] * t if poly[k] else t for k, t in enumerate(nodes)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
-        coef = self.J(grid).reshape(*sizes, n, n).astype(complex)
+        # J is symmetric: the transform of its upper triangle's entries, mirrored (each entry's is its own)
+        upper = np.triu_indices(n)
+        coef = self.J(grid)[:, upper[0], upper[1]].reshape(*sizes, -1).astype(complex)
         for k in range(m):
             if poly[k]:   # t^e coefficients: solve the Vandermonde system along axis k
                 V = np.vander(nodes[k], sizes[k], increasing=True)
                 coef = np.moveaxis(np.tensordot(np.linalg.inv(V), coef, axes=(1, k)), 0, k)
             else:
-                coef = np.fft.fft(coef, axis=k) / sizes[k]
+                coef = np.fft.fft(coef, axis=k)
+                coef /= sizes[k]
         freqs = [np.arange(L) if p else np.fft.fftfreq(L, 1.0 / L) for L, p in zip(sizes, poly)]
         F = np.stack(np.meshgrid(*freqs, indexing="ij"), axis=-1).reshape(-1, m).astype(int)
-        coef = coef.reshape(-1, n, n)
+        column = np.zeros((n, n), dtype=int)
+        column[upper] = np.arange(upper[0].size)
+        coef = np.ascontiguousarray(coef.reshape(-1, upper[0].size)[:, np.maximum(column, column.T)])
         if not any(poly):
             self.fourier = (coef, F)
         self._series = (coef, F, poly, half)

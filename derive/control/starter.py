@@ -120,7 +120,8 @@ def _rounded(Jbar: np.ndarray, omega: float) -> np.ndarray:
     return (W + W.T) / 2
 
 
-def _search(cert: ObserverCertificate, Jbar: np.ndarray, box: np.ndarray, start: float) -> tuple[float, np.ndarray, Decision]:
+def _search(cert: ObserverCertificate, Jbar: np.ndarray, box: np.ndarray,
+            start: float) -> tuple[float, np.ndarray, Decision]:
     """(omega [1/s], W as written, its decision) of the certificate's search from ``start`` (module docstring)."""
     tree = None
     if not cert.norm and cert.target.m > 0 and not cert.model.unbounded:

@@ -35,7 +35,8 @@ from dataclasses import replace
 import numpy as np
 
 from derive.control.certificate.decision import (FLOAT_MARGIN, MAX_ENUMERATED, CellBounds, Decision,  # noqa: F401
-                                                  Verdict, _positive_definite, _spectral_norm, halve_cells)
+                                                  Verdict, _cholesky_passes, _positive_definite, _spectral_norm,
+                                                  halve_cells)
 from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
 from derive.control.certificate.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
 from derive.control.certificate.suprema import Suprema
@@ -224,7 +225,8 @@ class ObserverCertificate(Suprema):
             def exact_point(A=None):   # the sample and vertex of N's smallest eigenvalue, and that eigenvalue
                 lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, True, jets) if A is None else A)[..., 0]
                 i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
-                return (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi])), lam[i, vi]
+                where = tuple(float(x) for x in self.speeds(shape, v, True)[vi])
+                return (tuple(float(x) for x in q[i]), where), lam[i, vi]
 
             # a Cholesky test above the floating-point margin first (7 times cheaper than the eigenvalues): where it
             # passes every eigenvalue is positive, and the smallest is wanted only for an unproven claim's point
@@ -285,13 +287,18 @@ class ObserverCertificate(Suprema):
             step = max(1, 2 ** 21 // (deltas.shape[0] * n * n))
             for chunk in range(0, hard.shape[0], step):
                 pv = hard[chunk:chunk + step]
-                corners = (deltas[None] * h[pv[:, 0]][:, None, :]) @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)
-                A = N[pv[:, 0], pv[:, 1]][:, None] + corners.reshape(-1, deltas.shape[0], n, n)
+                corners = ((deltas[None] * h[pv[:, 0]][:, None, :]) @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)) \
+                    .reshape(-1, deltas.shape[0], n, n)                                       # B x 2^m x n x n
+                centre = N[pv[:, 0], pv[:, 1]]                                                # B x n x n
                 r = rem[pv[:, 0], pv[:, 1]]
                 shift = r + np.maximum(2.0 * tol, 0.5 * (lam[pv[:, 0], pv[:, 1]] - r))
-                passed = _positive_definite(A - shift[:, None, None, None] * np.eye(n)).all(axis=1)
+                # A - shift I at every corner, A = N + corners, written n x n x B x 2^m for the Cholesky test
+                X = np.empty((n, n) + corners.shape[:2])
+                np.add(centre.transpose(1, 2, 0)[..., None], corners.transpose(2, 3, 0, 1), out=X)
+                X[np.arange(n), np.arange(n)] -= shift[:, None]
+                passed = _cholesky_passes(X.reshape(n, n, -1)).reshape(corners.shape[:2]).all(axis=1)
                 bound[pv[passed, 0], pv[passed, 1]] = shift[passed]
-                pv, A = pv[~passed], A[~passed]
+                pv, A = pv[~passed], centre[~passed][:, None] + corners[~passed]
                 if pv.shape[0]:   # the few near the edge: their vertices' eigenvalues, the margin exact there
                     bound[pv[:, 0], pv[:, 1]] = np.linalg.eigvalsh(A)[..., 0].min(axis=1)
             slack = (bound - rem).min(axis=1)

@@ -1,6 +1,8 @@
 """The observer certificate's verdicts and the numeric tests its cells share (derive.control.certificate and
 its grouped stages): Verdict, Decision, FLOAT_MARGIN, the cells' halving, the Perron bound of a spectral
-norm and the stacked Cholesky test."""
+norm and the stacked Cholesky test; the bounds branch and bound takes on a cell (CellBounds) and, from the
+same bounds, Knuth's estimate of its tree for W = omega D as omega varies (TreeEstimate, which
+derive.control.starter chooses omega with)."""
 from __future__ import annotations
 
 import itertools
@@ -72,7 +74,12 @@ def _positive_definite(A: np.ndarray) -> np.ndarray:
     of Cholesky's backward error, Higham, Accuracy and Stability of Numerical Algorithms, thm 10.5):
     the caller's shift by FLOAT_MARGIN (1 + ||W + W^T||) covers it, as it covers eigvalsh's."""
     n = A.shape[-1]
-    L = np.moveaxis(A.reshape(-1, n, n), 0, -1).copy()        # n x n x B: each step one array operation
+    return _cholesky_passes(np.moveaxis(A.reshape(-1, n, n), 0, -1).copy()).reshape(A.shape[:-2])
+
+
+def _cholesky_passes(L: np.ndarray) -> np.ndarray:
+    """:func:`_positive_definite` of the stack laid out n x n x B (each step one array operation), overwritten."""
+    n = L.shape[0]
     ok = np.ones(L.shape[-1], dtype=bool)
     for k in range(n):
         pivot = L[k, k]
@@ -80,7 +87,7 @@ def _positive_definite(A: np.ndarray) -> np.ndarray:
         if k + 1 < n:
             col = L[k + 1:, k] / np.where(pivot > 0, pivot, 1.0)
             L[k + 1:, k + 1:] -= col[:, None, :] * L[k, k + 1:][None, :, :]
-    return ok.reshape(A.shape[:-2])
+    return ok
 
 
 class CellBounds:

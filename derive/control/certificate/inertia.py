@@ -137,9 +137,8 @@ class InertiaModel:
 
     # -- numbers -----------------------------------------------------------------------------
     def _numeric(self, J: sp.Matrix, syms: list[sp.Symbol]) -> None:
-        """CasADi functions of J, dJ/dq (n^2 m) and d^2 J/dq^2 (n^2 m^2), batched by ``map``; the last made on
-        first use (:meth:`d2J`: a split certificate, derive.control.certificate.split, takes J's series instead,
-        and the function's common subexpressions took 0.19 s of the 4-digit 7-joint chain's init)."""
+        """CasADi functions of J, dJ/dq (n^2 m) and d^2 J/dq^2 (n^2 m^2, made on first use: a split certificate
+        takes J's series instead; its CSE took 0.19 s of a 7-joint init), batched by ``map``."""
         n, m = self.n, len(syms)
         x = ca.SX.sym("q", m)
         env = {s: x[k] for k, s in enumerate(syms)}

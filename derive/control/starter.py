@@ -32,7 +32,7 @@ smallest omega whose tree is estimated within TARGET cells, a decision of about 
 that is not proved within the budget (the estimate was short) or refuted at a point the samples missed
 is followed by one at least RAISE times larger (at most TRIES decisions). The file states the decision
 made: deterministic, with derive check's budget, so check makes the same. The Jaco 2 (omega_0 = 21.3 1/s,
-a tree of about 80,000 cells there): one decision at omega = 90.5 1/s (8,000 cells), where raising omega
+a tree of about 80,000 cells there): one decision at omega = 90.5 1/s (8,427 cells), where raising omega
 1.3-fold on 5,000-cell tries took nine decisions and wrote 133.7 1/s.
 
 The sample time: with the forward-Euler observer step the fast mode steps by I - dt W J^-1, stable

@@ -199,14 +199,11 @@ def starter_pose(d) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     margin = np.where(bounded, POSE_MARGIN * (hi - lo), 0.0)
     effort = np.array([float(m.input_limit) * float(m.gear_ratio) if m.input_limit else np.inf
                        for m in d.arm.motors])
-    # the parameters as arguments, not substituted: SymPy's substitution of decimal values into the
-    # whole tree (each node re-evaluated, with its assumptions) cost 20 s on a 7-joint arm written in decimals
-    names = [s for s, _ in d.dynamics.values]
-    values = np.array([float(v) for _, v in d.dynamics.values])
-    with_values = batched([*d.dynamics.sym.theta, *names], list(d.dynamics.gravity))
-
-    def gravity(Q: np.ndarray) -> np.ndarray:
-        return with_values(np.hstack([Q, np.broadcast_to(values, (Q.shape[0], values.size))]))
+    # the parameters' values as CasADi constants, not substituted by SymPy: its substitution of decimal values into
+    # the whole tree (each node re-evaluated, with its assumptions) cost 20 s on a 7-joint arm written in decimals;
+    # as constants CasADi folds them (passed as arguments they were computed again at every pose)
+    gravity = batched(list(d.dynamics.sym.theta), list(d.dynamics.gravity),
+                      {s: float(v) for s, v in d.dynamics.values})
 
     def amplitude(Q: np.ndarray) -> np.ndarray:
         return np.where(bounded, np.minimum(cap, PULSE_ROOM * (hi - Q)), cap)

@@ -147,9 +147,20 @@ def chain_dynamics(chain: Chain) -> Dynamics:
                     gravity=gravity, reflected=motors.reflected)
 
 
+_LAST: list = []   # [(chain, its Dynamics)]: derive_dynamics' last result in this process
+
+
 def derive_dynamics(arm: Arm) -> Dynamics:
-    """Symbolic dynamics of ``arm`` (eq. 11-12), from its chain (:attr:`Arm.chain`)."""
-    return chain_dynamics(arm.chain)
+    """Symbolic dynamics of ``arm`` (eq. 11-12), from its chain (:attr:`Arm.chain`). The last chain's
+    dynamics are kept for the process: an equal chain (every joint, body, parameter value and drive) has the
+    same, and ``derive init`` derives its arm twice (the draft it certifies W on, the file it states the
+    sample-time limits of: 0.13 s each for a 7-joint arm)."""
+    chain = arm.chain
+    if _LAST and _LAST[0][0] == chain:
+        return _LAST[0][1]
+    dyn = chain_dynamics(chain)
+    _LAST[:] = [(chain, dyn)]
+    return dyn
 
 
 def lagrange_reference(dyn: Dynamics, numeric: bool = False) -> tuple[sp.Matrix, sp.Matrix]:

@@ -177,17 +177,19 @@ def to_sx(expr: sp.Expr, env: dict, memo: Memo, constants: dict | None = None) -
     return out
 
 
-def batched(args, exprs):
+def batched(args, exprs, values: dict | None = None):
     """A numpy function of the expressions ``exprs`` in the symbols ``args``, evaluated at many
     points at once: called with a P x len(args) array it returns the P x len(exprs) values
     (double precision). Built through CasADi (each shared subexpression once, by
     :func:`to_sx`): a 7-joint arm's laws build in milliseconds where SymPy's ``lambdify``
-    printer takes seconds. Raises DerivationError for a symbol not in ``args``."""
+    printer takes seconds. ``values``: other symbols' numbers (floats), CasADi constants in the graph
+    (folded where they meet: no SymPy substitution). Raises DerivationError for a symbol in neither."""
     import numpy as np
 
     exprs = [sp.sympify(e) for e in exprs]
     x = ca.SX.sym("x", len(args))
-    env = {a: x[i] for i, a in enumerate(args)}
+    env = {s: ca.SX(float(v)) for s, v in (values or {}).items()}
+    env.update({a: x[i] for i, a in enumerate(args)})
     memo = Memo()
     out = ca.vertcat(*[to_sx(e, env, memo) for e in exprs]) if exprs else ca.SX(0, 1)
     f = ca.Function("f", [x], [out])

@@ -128,10 +128,24 @@ def _moves_inertia(r: Reader, arm) -> None:
         r.problems.append(problem)
 
 
+_UNMOVED: list = []   # [(key, unmoved_joint's answer)]: the last in this process
+
+
 def unmoved_inertia(chain: Chain, reflected: list, values: dict) -> Problem | None:
     """The problem of the first joint of ``chain`` that moves no inertia (J singular) with
-    the reflected rotor inertias ``reflected``, or None."""
-    found = unmoved_joint(chain, reflected, values)
+    the reflected rotor inertias ``reflected``, or None. The last answer is kept for the process
+    (the same chain, rotors and values give the same: derive init loads its draft and its file,
+    0.1 s of 50-digit arithmetic each on 7 joints)."""
+    from sympy import sympify
+
+    used = {p.symbol for p in chain.parameters}.union(*(sympify(r).free_symbols for r in reflected))
+    values = {s: v for s, v in values.items() if s in used}   # the chain's and the rotors' (not the controller's)
+    key = (chain, tuple(reflected), tuple(sorted(values.items(), key=lambda kv: str(kv[0]))))
+    if _UNMOVED and _UNMOVED[0][0] == key:
+        found = _UNMOVED[0][1]
+    else:
+        found = unmoved_joint(chain, reflected, values)
+        _UNMOVED[:] = [(key, found)]
     if found is None:
         return None
     i, everywhere = found

@@ -138,10 +138,11 @@ def _zero_limit_notes(zero: dict[str, list[str]], notes: list[str]) -> None:
 def snap_suggestion(kept: Sequence[float]) -> float:
     """The ``[arm] snap_angles`` [rad] that takes every near miss kept (``kept``: how far each is from its
     multiple of pi/2 [rad]) as that multiple: the 1-2-5 value at or above the farthest (NEAR_MISS at most;
-    the tolerance in force when none is kept)."""
+    the tolerance in force when none is kept), as the file writes it (5e-06, not 5 x 1e-6 = 4.9999999999999996e-06:
+    derive init's draft then reads the chain it read, kept by derive.model.urdf.urdf_chain)."""
     if not kept:
         return snap_tolerance()
-    return next((v for v in (m * 10.0 ** e for e in range(-8, -2) for m in (1, 2, 5)) if v >= max(kept)), NEAR_MISS)
+    return next((v for v in (float(f"{m}e{e}") for e in range(-8, -2) for m in (1, 2, 5)) if v >= max(kept)), NEAR_MISS)
 
 
 def angle_notes(log: list[tuple[str, str, str, float]]) -> list[str]:

@@ -34,8 +34,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from derive.control.certificate.decision import (FLOAT_MARGIN, Decision, Verdict, _positive_definite,  # noqa: F401
-                                                  _spectral_norm, halve_cells)
+from derive.control.certificate.decision import (FLOAT_MARGIN, MAX_ENUMERATED, CellBounds, Decision,  # noqa: F401
+                                                  Verdict, _cholesky_passes, _positive_definite, _spectral_norm,
+                                                  halve_cells)
 from derive.control.certificate.inertia import Coordinate, InertiaModel, joint_coordinates
 from derive.control.certificate.norm_bound import MAX_VERTEX_DEPS, norm_lower_bound, sample_count, sign_patterns
 from derive.control.certificate.suprema import Suprema
@@ -44,7 +45,6 @@ from derive.control.certificate.split import MAX_INNER, SplitModel, split_model
 __all__ = ["Coordinate", "Decision", "InertiaModel", "ObserverCertificate", "Verdict", "joint_coordinates"]
 
 DEFAULT_BUDGET = 20_000   # cells per decision
-MAX_ENUMERATED = 4          # cells' vertices are enumerated for m <= this (2^m affine corners)
 EXACT_SAMPLES = 512         # points where a split certificate looks for a refutation of N itself
 CELL_ELEMENTS = 1 << 22     # numbers of the largest per-batch array of a decision (the Hessian term)
 
@@ -69,6 +69,7 @@ class ObserverCertificate(Suprema):
         not on a shape that holds a joint J depends on at rest (0: the stage weighs the vertices by
         1 / shape)."""
         self.model = model
+        self._exact = None   # _decide's samples of N itself (with a split) and J's derivatives there
         m = model.m
         self.split: SplitModel | None = None
         self.wider: ObserverCertificate | None = None
@@ -103,16 +104,19 @@ class ObserverCertificate(Suprema):
         return v * signs * np.array([shape[c.index] for c in self.model.deps])[None, :]
 
     def matrices(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, q: np.ndarray,
-                 exact: bool = False) -> np.ndarray:
+                 exact: bool = False, jets: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """N at every box vertex for points q: N x 2^m x n x n. With a split and not ``exact``: the
         sound lower bound N_A - U(v) of derive.control.certificate.split at inner points q (N x m_inner); else
-        N itself at points q (N x m)."""
+        N itself at points q (N x m). ``jets``: (dJ, J) of the model at q when the caller has them."""
         split = None if exact else self.split
         md = self.model if split is None else split
         S = W + W.T
         speeds = self.speeds(shape, v, exact)
-        Jdot = np.einsum("vk,pkij->pvij", speeds[:, self.inner] if split is not None else speeds, md.dJ(q))
-        N = S[None, None] - Jdot - 2.0 * beta * md.J(q)[:, None]
+        dJ, J = (md.dJ(q), md.J(q)) if jets is None else jets
+        P, n = dJ.shape[0], dJ.shape[-1]
+        lead = speeds[:, self.inner] if split is not None else speeds
+        Jdot = (lead @ dJ.reshape(P, lead.shape[1], n * n)).reshape(P, -1, n, n)   # einsum's loop: 0.08 s of 576 x 64
+        N = S[None, None] - Jdot - 2.0 * beta * J[:, None]
         return N if split is None else N - split.majorant(speeds, beta, self.scale_for(W, shape))[None]
 
     def scale_for(self, W: np.ndarray, shape) -> str:
@@ -211,45 +215,37 @@ class ObserverCertificate(Suprema):
             ok = lam[0] > tol
             return done(Verdict.PROVED if ok else Verdict.REFUTED, 1, float(lam[0]) if ok else None,
                         None if ok else ((), ()), float(lam[0]))
-        all_speeds = self.speeds(shape, v)                                      # V x m_full
-        exact_worst = None
+        exact_point = None
         if split is not None:   # the split refutes nothing: N itself at samples may
-            q = self.samples(EXACT_SAMPLES, exact=True)
-            lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, exact=True))[..., 0]
-            i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
-            exact_worst = (tuple(float(x) for x in q[i]), tuple(float(x) for x in self.speeds(shape, v, True)[vi]))
-            if lam[i, vi] <= 0:
-                return done(Verdict.REFUTED, 0, None, exact_worst, float(lam[i, vi]))
+            if self._exact is None:   # the samples and J's derivatives there, the same for every decision
+                q = self.samples(EXACT_SAMPLES, exact=True)
+                self._exact = (q, (self.model.dJ(q), self.model.J(q)))
+            q, jets = self._exact
+
+            def exact_point(A=None):   # the sample and vertex of N's smallest eigenvalue, and that eigenvalue
+                lam = np.linalg.eigvalsh(self.matrices(W, shape, v, beta, q, True, jets) if A is None else A)[..., 0]
+                i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
+                where = tuple(float(x) for x in self.speeds(shape, v, True)[vi])
+                return (tuple(float(x) for x in q[i]), where), lam[i, vi]
+
+            # a Cholesky test above the floating-point margin first (7 times cheaper than the eigenvalues): where it
+            # passes every eigenvalue is positive, and the smallest is wanted only for an unproven claim's point
+            A = self.matrices(W, shape, v, beta, q, True, jets)
+            if not _positive_definite(A - tol * np.eye(A.shape[-1])).all():
+                point, least = exact_point(A)
+                if least <= 0:
+                    return done(Verdict.REFUTED, 0, None, point, float(least))
+            del A
         m, n = md.m, md.n
-        speeds = all_speeds[:, self.inner]                                      # V x m (inner)
-        # every matrix in J's diagonal scale, D^-1 N D^-1 (D^2: J's diagonal at the middle of the spans):
-        # positive definiteness is the same, an entrywise bound scales entry by entry, and a light
-        # wrist's small eigenvalues are no longer measured against the base's large variation
-        sc = np.outer(self.model.scale, self.model.scale)
-        offset = (split.majorant(all_speeds, beta, self.scale_for(W, shape)) if split is not None
-                  else np.zeros((1, n, n))) * sc
-        S = (W + W.T) * sc
+        cb = self.cell_bounds(W, shape, v, beta)
+        speeds, sc, S = cb.speeds, cb.sc, cb.S
         tol = FLOAT_MARGIN * (1 + np.linalg.norm(S, 2))
-        # T_jk bounds |d^2 N / dq_j dq_k| for every vertex: sum_i |theta'_i| |d3 J| + 2 beta |d2 J|
-        T = (np.einsum("i,ijkab->jkab", np.abs(speeds[0]), md.third) + 2.0 * beta * md.second) * sc
-        Tn = np.array([[_spectral_norm(T[j, k]) for k in range(m)] for j in range(m)])
-        # second order: the Hessian of N at the centre and T3_ijk bounding |d^3 N / dq_i dq_j dq_k|
-        fourth = getattr(md, "fourth", None) if m else None
-        T3 = None if fourth is None else (np.einsum("l,lijkab->ijkab", np.abs(speeds[0]), fourth)
-                                          + 2.0 * beta * md.third) * sc
         deltas = np.array(list(itertools.product((1.0, -1.0), repeat=m)))      # 2^m x m
         lo = np.array([span[0] for span in md.spans])
         hi = np.array([span[1] for span in md.spans])
         centres, halves = ((lo + hi) / 2)[None, :], ((hi - lo) / 2)[None, :]
         cells, margin, low, worst = 0, math.inf, math.inf, None
-        # at rate 0 the vertices come in pairs v, -v (vertex V - 1 - i is -vertex i), where |dN| and |H| are
-        # the same: their bounds are taken on the first half and mirrored
-        V = speeds.shape[0]
-        paired = beta == 0.0 and V % 2 == 0 and V > 1 and bool(np.all(speeds[::-1][:V // 2] == -speeds[:V // 2]))
-        lead = V // 2 if paired else V
-
-        def mirrored(x: np.ndarray) -> np.ndarray:
-            return np.concatenate([x, x[:, ::-1]], axis=1) if paired else x
+        lead = cb.lead
 
         # cells per batch: the Hessian's P x V' x m^2 x n^2 numbers within CELL_ELEMENTS (an 8-joint chain's
         # 512 cells x 64 vertices x 7^2 x 8^2 were 0.8 GB an array, 2.3 GB in check); the cells examined are
@@ -260,54 +256,49 @@ class ObserverCertificate(Suprema):
             c, h = centres[:batch], halves[:batch]
             centres, halves = centres[batch:], halves[batch:]
             cells += c.shape[0]
-            J, dJ, d2J, *d3J = md.jet(c, 2 if T3 is None else 3, sc)
-            # the contractions as matrix products (numpy's einsum loops took a third of the decision's time)
-            P = c.shape[0]
-            N = S[None, None] - offset[None] - (speeds @ dJ.reshape(P, m, -1)).reshape(P, -1, n, n) \
-                - 2.0 * beta * J[:, None]
-            dN = -(speeds @ d2J.reshape(P, m, -1)).reshape(P, -1, m, n, n) \
-                - 2.0 * beta * dJ[:, None]                                                     # P x V x m x n x n
+            N, dN, floor, state = cb.centre(c, h)
             lam = np.linalg.eigvalsh(N)[..., 0]                                           # P x V
             i, vi = np.unravel_index(int(lam.argmin()), lam.shape)
             if lam[i, vi] < low:
                 low, worst = float(lam[i, vi]), (c[i], vi)
             if lam[i, vi] <= 0:
                 if split is not None:
-                    return done(Verdict.UNPROVEN, cells, None, exact_worst, low)
+                    return done(Verdict.UNPROVEN, cells, None, exact_point()[0], low)
                 theta = tuple(float(x) for x in c[i])
                 own = float(np.linalg.eigvalsh(N[i, vi] / sc)[0])   # N itself, unscaled, for the message
                 return done(Verdict.REFUTED, cells, None, (theta, tuple(float(x) for x in speeds[vi])), own)
-            hh = (h[:, :, None] * h[:, None, :]).reshape(P, m * m)                          # h_j h_k
-            rem = np.broadcast_to(_spectral_norm(0.5 * (hh @ T.reshape(m * m, -1)).reshape(P, n, n))[:, None],
-                                  lam.shape)                                                   # P x V
-            if T3 is not None:   # N(c + delta) = affine + 1/2 delta^T H(c) delta + E3, |E3| <= 1/6 sum h h h T3
-                # one product for every cell: (V' x m) by (m x P m^2 n^2), then cells first
-                H = -(speeds[:lead] @ np.moveaxis(d3J[0].reshape(P, m, -1), 1, 0).reshape(m, -1)) \
-                    .reshape(lead, P, m * m, n * n).transpose(1, 0, 2, 3) \
-                    - 2.0 * beta * d2J.reshape(P, 1, m * m, n * n)                          # P x V' x m^2 x n^2
-                quad = mirrored(_spectral_norm(0.5 * (hh[:, None, None, :] @ np.abs(H)).reshape(P, -1, n, n)))
-                hhh = (hh[:, :, None] * h[:, None, :]).reshape(P, m ** 3)
-                cubic = _spectral_norm((hhh @ T3.reshape(m ** 3, -1)).reshape(P, n, n) / 6.0)
-                rem = np.minimum(rem, quad + cubic[:, None])
-            lin = mirrored(_spectral_norm((h[:, None, None, :] @ np.abs(dN[:, :lead]).reshape(P, -1, m, n * n))
-                                          .reshape(P, -1, n, n)))
+            # the second-order remainder and the linear term only in cells the remainder's lower bound leaves
+            # alive: elsewhere a vertex fails for sure (lam - rem <= tol), so rem's first form (an upper bound) and
+            # lin = inf stand in, and no vertex of the cell is enumerated
+            rem = np.broadcast_to(state[5][:, None], lam.shape).copy()
+            lin = np.full(lam.shape, np.inf)
+            rows = np.flatnonzero(lam.min(axis=1) > floor + tol)
+            if rows.size:
+                rem[rows], lin[rows] = cb.finish(state, rows)
             bound = lam - lin                                                                  # P x V
             # the vertices' minimum of the affine part is at most its value at the centre (concave): enumerate
-            # them only where the cheap bound fails and the centre's own eigenvalue could still succeed
-            hard = np.argwhere((bound - rem <= tol) & (lam - rem > tol)) if m <= MAX_ENUMERATED \
-                else np.zeros((0, 2), int)
+            # them only where the cheap bound fails and the centre's own eigenvalue could still succeed, in cells
+            # where no vertex fails for sure (lam - rem <= tol: such a cell is split whatever the others give)
+            alive = lam - rem > tol
+            hard = np.argwhere((bound - rem <= tol) & alive & alive.all(axis=1, keepdims=True)) \
+                if m <= MAX_ENUMERATED else np.zeros((0, 2), int)
             # there, first a Cholesky test at each vertex (9 times cheaper than its eigenvalues), shifted by half
             # the centre's slack (an upper bound of the vertices'); the eigenvalues of those that fail it
             step = max(1, 2 ** 21 // (deltas.shape[0] * n * n))
             for chunk in range(0, hard.shape[0], step):
                 pv = hard[chunk:chunk + step]
-                corners = (deltas[None] * h[pv[:, 0]][:, None, :]) @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)
-                A = N[pv[:, 0], pv[:, 1]][:, None] + corners.reshape(-1, deltas.shape[0], n, n)
+                corners = ((deltas[None] * h[pv[:, 0]][:, None, :]) @ dN[pv[:, 0], pv[:, 1]].reshape(-1, m, n * n)) \
+                    .reshape(-1, deltas.shape[0], n, n)                                       # B x 2^m x n x n
+                centre = N[pv[:, 0], pv[:, 1]]                                                # B x n x n
                 r = rem[pv[:, 0], pv[:, 1]]
                 shift = r + np.maximum(2.0 * tol, 0.5 * (lam[pv[:, 0], pv[:, 1]] - r))
-                passed = _positive_definite(A - shift[:, None, None, None] * np.eye(n)).all(axis=1)
+                # A - shift I at every corner, A = N + corners, written n x n x B x 2^m for the Cholesky test
+                X = np.empty((n, n) + corners.shape[:2])
+                np.add(centre.transpose(1, 2, 0)[..., None], corners.transpose(2, 3, 0, 1), out=X)
+                X[np.arange(n), np.arange(n)] -= shift[:, None]
+                passed = _cholesky_passes(X.reshape(n, n, -1)).reshape(corners.shape[:2]).all(axis=1)
                 bound[pv[passed, 0], pv[passed, 1]] = shift[passed]
-                pv, A = pv[~passed], A[~passed]
+                pv, A = pv[~passed], centre[~passed][:, None] + corners[~passed]
                 if pv.shape[0]:   # the few near the edge: their vertices' eigenvalues, the margin exact there
                     bound[pv[:, 0], pv[:, 1]] = np.linalg.eigvalsh(A)[..., 0].min(axis=1)
             slack = (bound - rem).min(axis=1)
@@ -317,14 +308,26 @@ class ObserverCertificate(Suprema):
             todo = ~ok
             if todo.any():
                 if cells + centres.shape[0] + 2 * int(todo.sum()) > budget:
-                    point = exact_worst if split is not None else (
+                    point = exact_point()[0] if split is not None else (
                         tuple(float(x) for x in worst[0]), tuple(float(x) for x in speeds[worst[1]]))
                     return done(Verdict.UNPROVEN, cells, None, point, low)
-                cs, hs = c[todo], h[todo]
-                grow = np.sqrt((dN[todo] ** 2).sum(axis=(-1, -2))).max(axis=1)              # P' x m
-                kids, kid_halves = halve_cells(cs, hs, np.argmax(hs * (grow + hs @ Tn), axis=1))
+                kids, kid_halves = halve_cells(c[todo], h[todo], cb.axis(dN[todo], h[todo]))
                 centres, halves = np.vstack([centres, kids]), np.vstack([halves, kid_halves])
         return done(Verdict.PROVED, cells, margin, None, low)
+
+    def cell_bounds(self, W: np.ndarray, shape, v: float, beta: float) -> CellBounds:
+        """The bounds :meth:`_decide` takes on its cells for W (n x n) on the box of scale v (the
+        speeds of its coordinates; with a split the majorant of the rest) at rate beta, every matrix
+        in J's diagonal scale D^-1 N D^-1 (D^2: J's diagonal at the middle of the spans): positive
+        definiteness is the same, an entrywise bound scales entry by entry, and a light wrist's small
+        eigenvalues are no longer measured against the base's large variation."""
+        md, split = self.target, self.split
+        W, shape = np.asarray(W, dtype=float), np.asarray(shape, dtype=float)
+        all_speeds = self.speeds(shape, v)                                      # V x m_full
+        sc = np.outer(self.model.scale, self.model.scale)
+        offset = (split.majorant(all_speeds, beta, self.scale_for(W, shape)) if split is not None
+                  else np.zeros((1, md.n, md.n))) * sc
+        return CellBounds(md, all_speeds[:, self.inner], (W + W.T) * sc, offset, beta, sc)
 
     def _decide_norm(self, W: np.ndarray, shape: np.ndarray, v: float, beta: float, done) -> Decision:
         """(*) by one matrix bound for every theta and speed (derive.control.certificate.norm_bound); a refutation

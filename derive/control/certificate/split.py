@@ -42,6 +42,7 @@ import numpy as np
 from derive.control.certificate.inertia import ROUNDING, InertiaModel, fourier_derivative_bounds
 
 MAX_INNER = 3        # angles decided by branch and bound
+NOISE = 1e-13        # a series term this small against the largest is majorised by its Frobenius norm (pair_parts)
 
 
 def _abs_matrix(X: np.ndarray) -> np.ndarray:
@@ -68,9 +69,26 @@ def pair_parts(full: InertiaModel, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
     Ti = np.linalg.inv(T)
 
     def absolute(X: np.ndarray) -> np.ndarray:
-        return T @ _abs_matrix(Ti @ X @ Ti.T) @ T.T          # matmul: einsum's loops took 0.2 s on 7 joints
+        Y = Ti @ X @ Ti.T                                     # matmul: einsum's loops took 0.2 s on 7 joints
+        # a term at the transform's rounding (most of a 6-angle series' 7,812 pairs, below 1e-15 of the largest):
+        # |Y| <= ||Y||_2 I <= ||Y||_F I, a majorant without its eigenvalues
+        size = np.sqrt((Y * Y).sum(axis=(-1, -2)))
+        small = size <= NOISE * size.max(initial=0.0)
+        out = np.empty_like(Y)
+        out[~small] = _abs_matrix(Y[~small])
+        out[small] = size[small][:, None, None] * np.eye(Y.shape[-1])
+        return T @ out @ T.T
 
     return rep, 2.0 * (absolute(coef[rep].real) + absolute(coef[rep].imag))
+
+
+def coefficient_norms(full: InertiaModel) -> np.ndarray:
+    """The Frobenius norm of every C_f of J's series (K), computed once per model (every split tried shares it)."""
+    norms = getattr(full, "_coefficient_norms", None)
+    if norms is None:
+        coef = full.fourier[0]
+        norms = full._coefficient_norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))
+    return norms
 
 
 def both_parts(full: InertiaModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -115,10 +133,10 @@ class SplitModel:
         rest = ~keep[rep]
         self._rest_F = F[rep[rest]].astype(float)                                   # P x m_full
         self._rest_abs = {key: absolute[rest] for key, (_, absolute) in parts.items()}   # P x n x n each
-        norms = np.sqrt((np.abs(coef) ** 2).sum(axis=(1, 2)))                       # Frobenius of every C_f
-        self._all_F, self._all_norm = F.astype(float), norms
+        self._all_F, self._all_norm = F.astype(float), coefficient_norms(full)
         self._keep = keep
         self._bounds: tuple[np.ndarray, ...] | None = None
+        self._products: dict = {}   # _weighted's coefficient matrices per (weights, scale)
 
     @property
     def second(self) -> np.ndarray:
@@ -145,13 +163,20 @@ class SplitModel:
         matrix product (N x 2K by 2K x W n(n+1)/2: half the work of the complex one it replaced)."""
         phase = q @ self._F.T                                               # N x K
         K, up = self._F.shape[0], self._AB.shape[1]
-        AB = self._AB if scale is None else self._AB * scale[np.triu_indices(self.n)][None]
-        A, B = AB[:K], AB[K:]
-        wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
-        # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
-        # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper triangle
-        M = np.concatenate([wr * A[:, None] - wi * B[:, None],
-                            -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+        key = (weights.tobytes(), None if scale is None else scale.tobytes())
+        M = self._products.get(key)
+        if M is None:   # the same weights and scale at every batch of a decision: made once
+            AB = self._AB if scale is None else self._AB * scale[np.triu_indices(self.n)][None]
+            A, B = AB[:K], AB[K:]
+            wr, wi = weights.real.T[:, :, None], weights.imag.T[:, :, None]    # K x W x 1
+            # Re(w e^{i phase} (A + i B)) = cos(phase) (wr A - wi B) - sin(phase) (wi A + wr B): the weights go into
+            # the coefficients (2K x W n(n+1)/2), so one real matrix product of [cos, sin] does every row, upper
+            # triangle
+            M = np.concatenate([wr * A[:, None] - wi * B[:, None],
+                                -(wi * A[:, None] + wr * B[:, None])]).reshape(2 * K, -1)
+            if len(self._products) > 8:
+                self._products.clear()
+            self._products[key] = M
         out = np.concatenate([np.cos(phase), np.sin(phase)], axis=1) @ M
         return out.reshape(phase.shape[0], weights.shape[0], up)[..., self._mirror]
 

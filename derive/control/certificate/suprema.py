@@ -1,14 +1,16 @@
-"""The numeric suprema of the observer certificate (derive.control.certificate): the largest speed box and
+"""The numeric estimates of the observer certificate (derive.control.certificate): the largest speed box and
 rate at which N = W + W^T - J'(theta, theta') - 2 beta J stays positive definite at sampled configurations
-(the figures a proved box is compared with), computed in batches of at most ELEMENTS numbers."""
+(the figures a proved box is compared with), computed in batches of at most ELEMENTS numbers; and the size
+of the branch and bound's tree for W = omega D at rate 0 as omega varies
+(derive.control.certificate.decision.TreeEstimate)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from derive.control.certificate.decision import TreeEstimate, estimate_tree
 from derive.control.certificate.norm_bound import ELEMENTS, norm_rate_bound, norm_speed_bound, sample_count
-
 
 class Suprema:
     """Mixin of ObserverCertificate: speed_supremum and rate_supremum (it supplies model, split, signs,
@@ -44,24 +46,37 @@ class Suprema:
         q = self.samples(sample_count(self.all_signs.shape[0], self.model.n, count) if self.norm else count, exact=exact)
         W = np.asarray(W, dtype=float)
         top = -math.inf
+        md = self.model if exact or self.split is None else self.split
         for qc in self._chunks(q, exact):
-            A = self.matrices(W, shape, 0.0, beta, qc, exact)[:, 0]
+            jets = (md.dJ(qc), md.J(qc))   # shared by the matrices below
+            M0 = self.matrices(W, shape, 0.0, beta, qc, exact, jets)
+            A = M0[:, 0]
             if np.linalg.eigvalsh(A)[:, 0].min() <= 0:
                 return 0.0
             if self.model.m == 0:
                 return math.inf
             Li = np.linalg.inv(np.linalg.cholesky(A))
+            LiT = Li.transpose(0, 2, 1)[:, None]
             if exact or self.split is None:
                 # K = J'(theta, s) at the vertices s, linear in s: the vertices -s give -K, so half of them
                 # and both ends of the spectrum give every lambda_max
                 half = self.speeds(shape, 1.0, True)[self.all_signs[:, 0] > 0]
-                K = np.einsum("vk,pkij->pvij", half, self.model.dJ(qc))
-                lam = np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))
+                K = np.einsum("vk,pkij->pvij", half, jets[0])
+                lam = np.linalg.eigvalsh(Li[:, None] @ K @ LiT)
                 top = max(top, lam[..., -1].max(), -lam[..., 0].min())
-            else:
-                K = -(self.matrices(W, shape, 1.0, 0.0, qc, exact) - self.matrices(W, shape, 0.0, 0.0, qc, exact))
-                top = max(top, np.linalg.eigvalsh(np.einsum("pab,pvbc,pdc->pvad", Li, K, Li))[..., -1].max())
+            else:   # at v = 0 every vertex's N is A's (M0's, at rate 0)
+                K = -(self.matrices(W, shape, 1.0, 0.0, qc, exact, jets)
+                      - (M0 if beta == 0.0 else self.matrices(W, shape, 0.0, 0.0, qc, exact, jets)))
+                top = max(top, np.linalg.eigvalsh(Li[:, None] @ K @ LiT)[..., -1].max())
         return math.inf if top <= 0 else float(1.0 / top)
+
+    def tree_estimate(self, D, shape, lowest: float, cells: float) -> TreeEstimate:
+        """derive.control.certificate.decision.TreeEstimate of the decisions for W = omega D (n x n, D + D^T
+        positive definite; omega >= ``lowest`` [1/s]) on the box ``shape`` (rad/s, scale 1) at rate 0, over the
+        levels of at most about ``cells`` cells: the decision's own bounds (:meth:`cell_bounds`)."""
+        if self.norm or self.model.unbounded or self.target.m == 0:
+            raise ValueError("tree_estimate: expected a branch and bound over at least one coordinate")
+        return estimate_tree(self.cell_bounds(D, shape, 1.0, 0.0), self.target.spans, lowest, cells)
 
     def rate_supremum(self, W, shape, v: float, count: int = 4096, exact: bool = False) -> float:
         """Numeric estimate of the largest beta for which (*) holds on the box of scale v:

@@ -264,27 +264,21 @@ def _climb(loop, form: str, observer: str, dt: float, starts, box: tuple, h0: fl
     ``starts`` ((theta, theta') with theta' held): each round moves each start to the best of its
     neighbours at distance h (of the ranges' widths) along the axes when that is larger, else halves h,
     from ``h0`` down to CLIMB_STEP. Returns the configurations (k x n), the speeds and radii."""
+    from derive.control.sampling.grid import compass
+
     lo, hi, axes = box
-    width = hi - lo
     Q = np.array([q for q, _ in starts], dtype=float)
     V = np.array([v for _, v in starts], dtype=float)
-    k, n = Q.shape
+    n = Q.shape[1]
     f = _rho(loop, form, observer, dt, list(zip(Q, V)))
     if not axes:
         return Q, V, f
-    h = np.full(k, h0)
-    steps = np.vstack([np.eye(n)[axes], -np.eye(n)[axes]])                                    # 2m x n
-    for _ in range(CLIMB_ROUNDS):
-        if h.max() < CLIMB_STEP:
-            break
-        trial = np.clip(Q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)        # k x 2m x n
-        r = _rho(loop, form, observer, dt, list(zip(trial.reshape(-1, n), np.repeat(V, len(steps), axis=0))))
-        r = r.reshape(k, len(steps))
-        best = r.argmax(axis=1)
-        better = r[np.arange(k), best] > f
-        Q[better] = trial[np.arange(k), best][better]
-        f[better] = r[np.arange(k), best][better]
-        h[~better] /= 2
+
+    def values(T: np.ndarray) -> np.ndarray:
+        return _rho(loop, form, observer, dt, list(zip(T.reshape(-1, n), np.repeat(V, T.shape[1], axis=0)))) \
+            .reshape(T.shape[:2])
+
+    Q, f = compass(values, Q, f, lo, hi, h0, CLIMB_STEP, CLIMB_ROUNDS, axes=axes)
     return Q, V, f
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from derive.control.sampling.grid import Grid, check_definite, spans
+from derive.control.sampling.grid import Grid, check_definite, compass, spans
 
 JOIN = 1.01        # a found rate must exceed the grid's fastest by this factor to join
 STARTS = 2         # the fastest screened configurations each search starts from
@@ -58,23 +58,11 @@ def _observer(loop, Q: np.ndarray) -> np.ndarray:
 
 
 def _ascend(rate, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
-    """The fastest configuration a compass search from ``starts`` (k x n) finds within [lo, hi]."""
-    q = starts.copy()
-    f = rate(q)
-    k, n = q.shape
-    width = np.where(hi > lo, hi - lo, 0.0)
-    h = np.full(k, FIRST_STEP)
-    steps = np.vstack([np.eye(n), -np.eye(n)])
-    for _ in range(ROUNDS):
-        if h.max() < LAST_STEP:
-            break
-        trial = np.clip(q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)
-        r = rate(trial.reshape(-1, n)).reshape(k, 2 * n)
-        best = r.argmax(axis=1)
-        better = r[np.arange(k), best] > f
-        q[better] = trial[np.arange(k), best][better]
-        f[better] = r[np.arange(k), best][better]
-        h[~better] /= 2
+    """The fastest configuration a compass search (derive.control.sampling.grid.compass) from ``starts``
+    (k x n) finds within [lo, hi]."""
+    n = starts.shape[1]
+    q, f = compass(lambda T: rate(T.reshape(-1, n)).reshape(T.shape[:2]), starts, rate(starts), lo, hi,
+                   FIRST_STEP, LAST_STEP, ROUNDS)
     i = int(f.argmax())
     return q[i], float(f[i])
 

@@ -216,26 +216,39 @@ def check_definite(d, extra: np.ndarray | None = None) -> None:
         raise SpecError(d.arm.source, [_problem(d, *found)], title="J(theta) singular within the joint limits of")
 
 
-def _refine(mass, starts: np.ndarray, values: np.ndarray, lo: np.ndarray, hi: np.ndarray):
-    """The smallest lambda_min / lambda_max found from ``starts`` by a compass search within [lo, hi]
-    (every start at once: each round evaluates the 2 n neighbours at distance h of each start, moves
-    to the best that is lower, else halves h, down to 1e-8 of the ranges): (theta, ratio) when
-    below SINGULAR, else None."""
-    q, f = starts.copy(), values.astype(float).copy()
+def compass(values, q: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np.ndarray, first: float, last: float,
+            rounds: int, maximise: bool = True, axes=None, stop=None) -> tuple[np.ndarray, np.ndarray]:
+    """A compass search from every row of ``q`` (k x n, values ``f``) at once, within [lo, hi]: each round
+    ``values`` takes the k x 2m x n neighbours at distance h (of each range's width) along ``axes`` (every
+    coordinate when None) and returns their k x 2m values; each start moves to its best neighbour when
+    that is better (larger with ``maximise``, else smaller), else halves its h, from ``first`` until every
+    h is below ``last``, ``rounds`` rounds, or ``stop(f)``. Returns the points and their values."""
+    q, f = q.copy(), np.asarray(f, dtype=float).copy()
     k, n = q.shape
     width = np.where(hi > lo, hi - lo, 0.0)
-    h = np.full(k, 0.125)
-    steps = np.vstack([np.eye(n), -np.eye(n)])                                   # 2n x n
-    for _ in range(400):
-        if f.min() < SINGULAR or h.max() < 1e-8:
+    h = np.full(k, first)
+    eye = np.eye(n) if axes is None else np.eye(n)[axes]
+    steps = np.vstack([eye, -eye])                                                 # 2m x n
+    for _ in range(rounds):
+        if h.max() < last or (stop is not None and stop(f)):
             break
-        trial = np.clip(q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)   # k x 2n x n
-        r = _ratio(mass(trial.reshape(-1, n))).reshape(k, 2 * n)
-        best = r.argmin(axis=1)
-        better = r[np.arange(k), best] < f
+        trial = np.clip(q[:, None, :] + h[:, None, None] * steps[None] * width, lo, hi)   # k x 2m x n
+        r = values(trial)
+        best = r.argmax(axis=1) if maximise else r.argmin(axis=1)
+        pick = r[np.arange(k), best]
+        better = pick > f if maximise else pick < f
         q[better] = trial[np.arange(k), best][better]
-        f[better] = r[np.arange(k), best][better]
+        f[better] = pick[better]
         h[~better] /= 2
+    return q, f
+
+
+def _refine(mass, starts: np.ndarray, values: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """The smallest lambda_min / lambda_max found from ``starts`` by a compass search within [lo, hi]
+    (:func:`compass`, from 1/8 of the ranges down to 1e-8): (theta, ratio) when below SINGULAR, else None."""
+    n = starts.shape[1]
+    q, f = compass(lambda T: _ratio(mass(T.reshape(-1, n))).reshape(T.shape[:2]), starts, values, lo, hi,
+                   0.125, 1e-8, 400, maximise=False, stop=lambda f: f.min() < SINGULAR)
     i = int(f.argmin())
     return (q[i], float(f[i])) if f[i] < SINGULAR else None
 

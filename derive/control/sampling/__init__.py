@@ -49,7 +49,10 @@ dt, "MOM 0 ms", where the simulated loop tracks. The limit is the largest dt (fo
 bisection to 1 %) for which that holds at every operating point of derive.control.sampling.grid: configurations
 within the joint limits times the speeds of the speed box (controller.max_joint_speed, else the URDF's
 velocity limits, else at rest only; the box's vertices and each joint alone at its bound); the figure
-reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite grid.
+reported is 0.9 of it: the stated margin for the frozen-time linearisation over a finite grid. The grid
+holds the poses where a rate at rest is fastest (derive.control.sampling.extremes), and after the bisection
+the rest poses are searched for one where the loop is unstable at the limit found; such a pose joins the
+grid and the limits are bisected again (derive.control.sampling.climb).
 A loop already unstable at DT_MIN (1e-7 s) has no limit in that search: when its continuous
 linearisation (the limit dt -> 0 of every discretisation, :func:`_continuous_rate`) is stable at
 every point, the limit is "below 1e-7 s" (extreme gains: T2 = 1e-20 puts the MPC poles at
@@ -61,20 +64,22 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from derive.control.sampling.extremes import with_extremes
-from derive.control.sampling.grid import Grid, grid
+from derive.control.sampling.climb import rest_poses, screen, unstable_rest_poses
+from derive.control.sampling.grid import Grid, check_definite, grid, spans
 from derive.control.sampling.linear_loop import SampledLoop
 from derive.control.sampling.radius import spectral_radius
+from derive.control.sampling.transition import _Z_ONLY, _continuous_rate, _radii, _transition
 from derive.control.sampling.zoh import bound, zoh
 
 FORMS = ("mpc", "dobc", "npid", "mom")
 SHARED = ("mpc", "mom")   # the same step in both discretisations: one limit
 OBSERVERS = ("explicit", "implicit")   # derive generate --observer
-_Z_ONLY = "z-only"   # backward Euler of z before the measurement moves: an analysis variant (docstring)
+ENTRIES = tuple((o, f) for o in OBSERVERS for f in FORMS if o == "explicit" or f not in SHARED)   # distinct limits
 MARGIN = 0.9
 DT_MAX = 1.0      # s: no limit is reported beyond it
 DT_MIN = 1e-7
@@ -83,6 +88,7 @@ TOLERANCE = 1.01  # the bisection's end: hi / lo at most this (1 %)
 ACTIVE = 16       # at least this many points (and 5 %) are followed through the bisection
 GROWTH = 4.0      # the bracket's growth per step from DT_START
 SUBSET = 128      # about this many points (every k-th of the grid) carry the search; the whole grid checks its result
+PROBE = 1.25      # the rest poses' radii are compared at this multiple of the limit (past it the fast mode's shows)
 WHOLE = 4096      # the whole grid's radii this many points at a time (a caller's 20,000 points took 1.9 GB at once)
 
 
@@ -246,107 +252,6 @@ def _first_failure(radii, P: int, start: float, stop: float) -> np.ndarray | Non
         dt = min(dt * 2, stop)
 
 
-def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
-           rank: bool = False, eigen_first: bool = False) -> np.ndarray:
-    """Spectral radius of the sampled closed loop at every operating point (module docstring; not
-    ``exact``: as spectral_radius gives it, ``eigen_first`` passed on)."""
-    return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
-
-
-def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
-                hold: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring); ``hold``: :func:`derive.control.sampling.zoh.zoh` of L at dt when the caller has it."""
-    n, m = loop.n, 2 * loop.n
-    P = L["A"].shape[0]
-    Phi, Gam = zoh(L, dt) if hold is None else hold
-    Ux, Uc = L["Ux"], L["Uc"]
-    eye = np.broadcast_to(np.eye(n), (P, n, n))
-    if form == "mpc":
-        return Phi + Gam @ Ux
-    if form == "mom":                       # m + dt m'(x, m, u), the same in both discretisations
-        R = dt * L["R"]
-        Sx, Sc, Su = R[:, :, :m], eye + R[:, :, m:m + n], R[:, :, m + n:]
-        M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
-                            np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-        return _residual(M, L, loop.K, dt)
-    elif form == "npid":                      # int_e + dt (yd - C theta)
-        if observer == "implicit":          # W -> W_dt = W (J + dt W)^-1 J in u = u* + B^-1 W xi
-            BW = np.linalg.solve(loop.B, loop.W)
-            Wdt = loop.W @ np.linalg.solve(L["J"] + dt * loop.W, L["J"])
-            F = np.linalg.solve(loop.B, Wdt) - BW                      # B^-1 (W_dt - W)
-            Ux, Uc = Ux + F @ L["Xi"][:, :, :m], Uc + F @ L["Xi"][:, :, m:]
-        Sx = np.broadcast_to(np.hstack([-dt * loop.C, np.zeros((n, n))]), (P, n, m))
-        Sc, Su = eye, np.zeros((P, n, n))
-    elif observer == "implicit":            # DOBC, state (x_k, z_{k-1}, u_{k-1}): z_k first, then u_k
-        K = dt * loop.W @ np.linalg.inv(L["J"] + dt * loop.W)
-        Zx, Zz, Zu = K @ L["dr"], eye - K, -K @ loop.B                 # z_k = Zx x_k + Zz z_{k-1} + Zu u_{k-1}
-        Vx, Vz, Vu = Ux + Uc @ Zx, Uc @ Zz, Uc @ Zu                    # u_k in the same
-        M = np.concatenate([np.concatenate([Phi + Gam @ Vx, Gam @ Vz, Gam @ Vu], axis=-1),
-                            np.concatenate([Zx, Zz, Zu], axis=-1),
-                            np.concatenate([Vx, Vz, Vu], axis=-1)], axis=-2)
-        return M
-    else:                                   # explicit, or the z-only backward step (_Z_ONLY)
-        A = L["J"] + (dt * loop.W if observer == _Z_ONLY else 0.0)
-        K = dt * loop.W @ np.linalg.inv(A)
-        Sx, Sc, Su = K @ L["dr"], eye - K, -K @ loop.B
-    M = np.concatenate([np.concatenate([Phi + Gam @ Ux, Gam @ Uc], axis=-1),
-                        np.concatenate([Sx + Su @ Ux, Sc + Su @ Uc], axis=-1)], axis=-2)
-    return M
-
-
-def _continuous_rate(loop: SampledLoop, form: str, L: dict) -> np.ndarray:
-    """The largest real part of the eigenvalues of the continuous linearised closed loop (the limit
-    dt -> 0 of every discretisation: M(dt) = I + dt A_cl + O(dt^2)) at every operating point: x' = A x
-    + Bu u, u = Ux x + Uc c, and the form's c' (DOBC z' = W J^-1 (dr x - B u - z); NPID int_e' = -C
-    theta; MOM in the residual's coordinates, as :func:`_residual`). Negative at every point: the
-    continuous loop is stable there, so a loop unstable at DT_MIN has a limit below it."""
-    n, m = loop.n, 2 * loop.n
-    P = L["A"].shape[0]
-    top = np.concatenate([L["A"] + L["Bu"] @ L["Ux"], L["Bu"] @ L["Uc"]], axis=-1)
-    if form == "mpc":
-        return np.linalg.eigvals(top[:, :, :m]).real.max(axis=-1)
-    if form == "dobc":
-        WJ = loop.W @ np.linalg.inv(L["J"])
-        bottom = np.concatenate([WJ @ (L["dr"] - loop.B @ L["Ux"]), -WJ @ (np.eye(n) + loop.B @ L["Uc"])], axis=-1)
-    elif form == "npid":
-        bottom = np.broadcast_to(np.hstack([-loop.C, np.zeros((n, 2 * n))]), (P, n, m + n))
-    else:                                     # mom: (x, m) -> (x, r), r = K (P x - m), with T' T^-1
-        R = L["R"]
-        bottom = np.concatenate([R[:, :, :m] + R[:, :, m + n:] @ L["Ux"], R[:, :, m:m + n] + R[:, :, m + n:] @ L["Uc"]],
-                                axis=-1)
-        A = np.concatenate([top, bottom], axis=-2)
-        K = loop.K
-        eye, zero = np.broadcast_to(np.eye(m), (P, m, m)), np.zeros((P, m, n))
-        T = np.concatenate([np.concatenate([eye, zero], axis=-1),
-                            np.concatenate([K @ L["P"], np.broadcast_to(-K, (P, n, n))], axis=-1)], axis=-2)
-        Tinv = np.concatenate([np.concatenate([eye, zero], axis=-1),
-                               np.concatenate([L["P"], np.broadcast_to(-np.linalg.inv(K), (P, n, n))], axis=-1)], axis=-2)
-        Tdot = np.zeros((P, m + n, m + n))
-        Tdot[:, m:, :m] = K @ L["Pdot"]
-        return np.linalg.eigvals(T @ A @ Tinv + Tdot @ Tinv).real.max(axis=-1)
-    return np.linalg.eigvals(np.concatenate([top, bottom], axis=-2)).real.max(axis=-1)
-
-
-def _residual(M: np.ndarray, L: dict, K: np.ndarray, dt: float) -> np.ndarray:
-    """The MOM transition M over (x, m) in the residual's coordinates (x, r), r = K (J theta' - m),
-    taken at the sample it maps from (P_k) and at the one it maps to (P_k+1 = P_k + dt P', the
-    nominal motion to first order): T_k+1^-1 M T_k, m = P x - K^-1 r. At a moving operating point m
-    moves with J(theta) theta'; in m's own coordinates the frozen-time linearisation shows a mode
-    of the rate of that motion (P' K-terms: my3 at 3-5 rad/s, rho = 1 + 6.9 dt at every dt) that
-    the loop does not have: r' = K (B d - r) whatever the state (derive.control.momentum)."""
-    n = K.shape[0]
-    P = M.shape[0]
-    P0, P1 = L["P"], L["P"] + dt * L["Pdot"]
-    eye = np.broadcast_to(np.eye(2 * n), (P, 2 * n, 2 * n))
-    zero = np.zeros((P, 2 * n, n))
-    T0 = np.concatenate([np.concatenate([eye, zero], axis=-1),
-                         np.concatenate([P0, np.broadcast_to(-np.linalg.inv(K), (P, n, n))], axis=-1)], axis=-2)
-    T1 = np.concatenate([np.concatenate([eye, zero], axis=-1),
-                         np.concatenate([K @ P1, np.broadcast_to(-K, (P, n, n))], axis=-1)], axis=-2)
-    return T1 @ M @ T0
-
-
 _LIMITS: dict = {}
 _GRIDS: dict = {}
 _LINEAR: dict = {}
@@ -370,16 +275,75 @@ def _loop(d) -> SampledLoop:
 
 
 def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
-    """The sample-time limit of every form (FORMS) with the observer discretisation ``observer``
-    (cached per derivation; MPC has no observer and MOM steps the same in both: their limits are shared)."""
-    def make() -> dict[str, SampleLimit]:
-        loop = _loop(d)
-        holds: dict = {}   # the zero-order holds the forms' searches share (sample_limit), dropped after them
-        out = {form: sample_limit(d, form, observer, loop=loop, holds=holds) for form in FORMS
-               if form not in SHARED or observer == "explicit"}
-        if observer != "explicit":
-            shared = limits(d, "explicit")
-            out = {f: out[f] if f in out else shared[f] for f in FORMS}
-        return out
+    """The sample-time limit of every form (FORMS) with the observer discretisation ``observer`` (OBSERVERS;
+    ValueError for another), on the grid with the rest poses where a form's loop is least stable joined
+    (:func:`_settled`); cached per derivation (MPC has no observer and MOM steps the same in both: their limits
+    are shared)."""
+    if observer not in OBSERVERS:
+        raise ValueError(f"limits: expected an observer of {OBSERVERS}, got {observer!r}")
+    return _cached(_LIMITS, d, "settled", lambda: _settled(d))[observer]
 
-    return _cached(_LIMITS, d, observer, make)
+
+def _on_grid(d, loop: SampledLoop) -> dict[str, dict[str, SampleLimit]]:
+    """Every form's limit in both discretisations on the current grid (_grid)."""
+    holds: dict = {}   # the zero-order holds the forms' searches share (sample_limit), dropped after them
+    out = {o: {form: sample_limit(d, form, o, loop=loop, holds=holds) for form in FORMS
+               if form not in SHARED or o == "explicit"} for o in OBSERVERS}
+    return {o: {f: forms.get(f, out["explicit"][f]) for f in FORMS} for o, forms in out.items()}
+
+
+def _settled(d) -> dict[str, dict[str, SampleLimit]]:
+    """:func:`_on_grid`, then for each form and discretisation a search of the rest poses for one where the
+    loop's radius reaches 1 at its limit (derive.control.sampling.climb; none when every rest pose of the
+    grid is stable at PROBE x the limit). The poses found join the grid, their linearisations the cached
+    ones, and a limit is bisected again when a joined point is unstable at it."""
+    loop = _loop(d)
+    s = spans(d)
+    lo, hi = np.array([a for a, _, _ in s]), np.array([b for _, b, _ in s])
+    out = _on_grid(d, loop)
+    pts = _grid(d).points
+    rest, S = rest_poses(pts), screen(lo, hi)
+    Q = np.vstack([np.array([pts[i][0] for i in rest], dtype=float).reshape(-1, d.n), S])
+    found: list[np.ndarray] = []
+    screened: dict = {}   # the screen's linearisation per form
+    for o, form in ENTRIES:
+        lim, L = out[o][form], _cached(_LINEAR, d, form, lambda: None)[1]
+        if not 0.0 < lim.raw < math.inf or lim.below or \
+                _radii(loop, form, o, PROBE * lim.raw, {k: v[rest] for k, v in L.items()}).max() < 1.0:
+            continue
+        if form not in screened:
+            screened[form] = loop.linearise(form, S, np.zeros_like(S))
+        rho = _radii(loop, form, o, PROBE * lim.raw, {k: np.concatenate([v[rest], screened[form][k]])
+                                                       for k, v in L.items()})
+
+        def radius(T, dt, form=form, o=o):
+            return _radii(loop, form, o, dt, loop.linearise(form, T, np.zeros_like(T)))
+        found += [q for q in unstable_rest_poses(radius, Q, rho, lim.raw, PROBE * lim.raw, lo, hi, loop.moving)
+                  if not any(np.allclose(q, p, rtol=0.0, atol=1e-9) for p in found)]
+    if found:
+        _join(d, loop, out, np.array(found))
+    return out
+
+
+def _join(d, loop: SampledLoop, out: dict, extra: np.ndarray) -> None:
+    """Join the configurations ``extra`` to the grid (at every speed; SpecError where J is singular) and their
+    linearisations to the cached ones; bisect again each limit of ``out`` a joined point is unstable at."""
+    check_definite(d, extra)
+    before = len(_grid(d).points)
+    grown = _grid(d).join(extra)
+    _GRIDS[(id(d), "grid")] = (d, grown)
+    Q, DQ = (np.array([x[i] for x in grown.points[before:]], dtype=float) for i in (0, 1))
+    holds: dict = {}
+    for form in FORMS:
+        lp, L = _cached(_LINEAR, d, form, lambda: None)
+        add = lp.linearise(form, Q, DQ)
+        _LINEAR[(id(d), form)] = (d, (lp, {k: np.concatenate([v, add[k]]) for k, v in L.items()}))
+    for o, form in ENTRIES:
+        lim = out[o][form]
+        add = {k: v[before:] for k, v in _LINEAR[(id(d), form)][1][1].items()}
+        if 0.0 < lim.raw < math.inf and _radii(loop, form, o, lim.raw, add).max() >= 1.0:
+            out[o][form] = sample_limit(d, form, o, loop=loop, holds=holds)
+        else:
+            out[o][form] = replace(lim, points=len(grown.points))
+    for form in SHARED:
+        out["implicit"][form] = out["explicit"][form]

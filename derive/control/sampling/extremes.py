@@ -72,7 +72,6 @@ def with_extremes(d, loop, g: Grid) -> Grid:
     SpecError when J is singular at one (derive.control.sampling.grid.check_definite)."""
     n = d.n
     configs = np.array([q for q, _ in g.points[::g.speeds]])
-    speeds = [dq for _, dq in g.points[:g.speeds]]
     s = spans(d)
     lo = np.array([a for a, _, _ in s])
     hi = np.array([b for _, b, _ in s])
@@ -92,5 +91,4 @@ def with_extremes(d, loop, g: Grid) -> Grid:
         return g
     extra = np.array(found).reshape(-1, n)
     check_definite(d, extra)
-    points = g.points + tuple((q, dq) for q in extra for dq in speeds)
-    return Grid(points, g.configs + extra.shape[0], g.speeds, g.box)
+    return g.join(extra)

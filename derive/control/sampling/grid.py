@@ -139,6 +139,12 @@ class Grid:
         return (f"{len(self.points)} operating points: {self.configs} configurations within the joint limits, "
                 f"speeds {self.box.describe()}")
 
+    def join(self, extra: np.ndarray) -> "Grid":
+        """This grid with the configurations ``extra`` (k x n) joined, each at every speed of the grid."""
+        speeds = [dq for _, dq in self.points[:self.speeds]]
+        points = self.points + tuple((q, dq) for q in np.asarray(extra, dtype=float) for dq in speeds)
+        return Grid(points, self.configs + len(extra), self.speeds, self.box)
+
 
 def grid(d, count: int = 48, seed: int = 0) -> Grid:
     """The operating points of derivation ``d``; raises SpecError when J is singular at a

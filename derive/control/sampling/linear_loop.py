@@ -52,7 +52,8 @@ class _Mapped:
 
 class LinearisedLaws:
     """The laws of derivation ``d`` as numeric functions with their Jacobians (double precision,
-    one row per operating point). n joints; B, W, C, K (the momentum observer's gain) as arrays."""
+    one row per operating point). n joints; B, W, C, K (the momentum observer's gain) as arrays;
+    ``moving``: the joint coordinates J or G depends on."""
 
     def __init__(self, d) -> None:
         s = d.dynamics.sym
@@ -95,7 +96,10 @@ class LinearisedLaws:
         G = conv(d.G)
         self._G = _Mapped(x2, [(G, (n,)), (ca.jacobian(G, x2), (n, 2 * n))])
         # J(theta) a and its Jacobian in theta at a fixed a (a: the last n inputs)
-        Ja = ca.mtimes(ca.reshape(conv(list(d.J)), n, n).T, last)    # d.J row-major -> SX column-major
+        Jsx = conv(list(d.J))
+        Ja = ca.mtimes(ca.reshape(Jsx, n, n).T, last)    # d.J row-major -> SX column-major
+        # the joint coordinates J or G depends on (structurally: CasADi's which_depends)
+        self.moving = tuple(k for k, b in enumerate(ca.which_depends(ca.vertcat(Jsx, G), th, 1, False)) if b)
         self._Ja = _Mapped(ca.vertcat(th, last), [(ca.jacobian(Ja, th), (n, n))])
         # the momentum J theta': P = its Jacobian in x = (theta, theta'), and P's rate along v = last 2n
         v = ca.SX.sym("v", 2 * n)

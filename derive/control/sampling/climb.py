@@ -20,7 +20,8 @@ a joined point fails is bisected again. No search is made for a limit at which e
 grid is stable at PROBE x raw.
 
 On the Tiago this states DOBC 1.103 ms (true 1.217 ms, benchmarks/limits_truth.py) and adds about
-0.9 s of CPU to its 2.4 s of limits; 0.2-0.4 s on the 7-joint corpus arms, where it finds no pose.
+1 s of CPU to its 2.4 s of limits (both observer steps); 0.1-0.3 s on the 7-joint corpus arms, where it
+finds no pose.
 At rest the frozen-time linearisation is the loop's own (an equilibrium); the search is local (the
 margin covers what it misses: the pose it finds on the Tiago is unstable from 1.234 ms, the worst known
 from 1.206 ms), and points in motion are left to the grid (their figures are frozen-time).
@@ -31,7 +32,7 @@ import numpy as np
 
 from derive.control.sampling.grid import compass
 
-STARTS = 2            # rest poses each search starts from (the grid's nearest to failing at the limit)
+STARTS = 1            # poses each search starts from (the grid's and the screen's nearest to failing)
 FIRST_STEP = 0.125    # of each coordinate's range
 LAST_STEP = 1.0 / 32
 ROUNDS = 16           # compass rounds at most per search

@@ -14,15 +14,16 @@ _Z_ONLY = "z-only"   # backward Euler of z before the measurement moves: an anal
 
 def _radii(loop: SampledLoop, form: str, observer: str, dt: float, L: dict, exact: bool = True,
            rank: bool = False, eigen_first: bool = False) -> np.ndarray:
-    """Spectral radius of the sampled closed loop at every operating point (module docstring; not
-    ``exact``: as spectral_radius gives it, ``eigen_first`` passed on)."""
+    """Spectral radius of the sampled closed loop at every operating point (derive.control.sampling's
+    docstring; not ``exact``: as spectral_radius gives it, ``eigen_first`` passed on)."""
     return spectral_radius(_transition(loop, form, observer, dt, L), exact, rank, eigen_first)
 
 
 def _transition(loop: SampledLoop, form: str, observer: str, dt: float, L: dict,
                 hold: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """The sampled closed loop's transition matrix at every operating point (P x k x k; module
-    docstring); ``hold``: :func:`derive.control.sampling.zoh.zoh` of L at dt when the caller has it."""
+    """The sampled closed loop's transition matrix at every operating point (P x k x k;
+    derive.control.sampling's docstring); ``hold``: :func:`derive.control.sampling.zoh.zoh` of L at dt
+    when the caller has it."""
     n, m = loop.n, 2 * loop.n
     P = L["A"].shape[0]
     Phi, Gam = zoh(L, dt) if hold is None else hold

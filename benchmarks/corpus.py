@@ -311,25 +311,34 @@ def markdown(results: list[ArmResult], timeout: float) -> str:
         *(limits_markdown(limited) if limited else [])])
 
 
+# issue 33's goals: CPU seconds per command and peak MiB, by the number of joints (6-7, 8, 12); issue 19's
+# fmu --plant < 30 s for 7 joints beside them
+BUDGETS = ((6, 7, "6-7", {"init": 5.0, "show": 5.0, "check": 30.0, "generate": 15.0, "simulate": 30.0,
+                          "fmu --plant": 30.0}, 1024),
+           (8, 8, "8", {"init": 10.0, "show": 10.0, "check": 45.0, "generate": 30.0, "simulate": 60.0}, 1024),
+           (12, 12, "12", {"init": 30.0, "show": 30.0, "check": 120.0, "generate": 60.0, "simulate": 120.0}, 2048))
+
+
 def goals(results: list[ArmResult]) -> tuple[Goal, ...]:
-    """Issue 19's goals for 7-joint arms: show < 5 s, check < 30 s, generate < 15 s, < 1 GiB; issue 34's for the
-    sample-time limits (every arm: benchmarks.corpus_limits.limit_goals)."""
+    """Issue 33's goals per class of arm (BUDGETS: CPU seconds per command, peak memory) for the classes
+    the run holds; issue 34's for the sample-time limits (every arm: benchmarks.corpus_limits.limit_goals)."""
     out = []
-    seven = [r for r in results if r.joints == 7]
-    for command, limit in (("show", 5.0), ("check", 30.0), ("generate", 15.0), ("fmu --plant", 30.0)):
-        times = [(r.name, c.cpu_seconds if c.cpu_seconds is not None else c.seconds, c.ok)
-                 for r in seven for c in r.commands if c.command == command]
-        if times:
-            worst = max(times, key=lambda x: x[1])
-            out.append(Goal(f"7-joint arms: {command} under {limit:g} s of CPU", all(ok and t < limit for _, t, ok in times),
-                            f"slowest {worst[0]}: {worst[1]:.1f} s"))
-    out += limit_goals(results)
-    peaks = [(r.name, c.command, c.peak_mib) for r in seven for c in r.commands if c.peak_mib is not None]
-    if peaks:
-        worst = max(peaks, key=lambda x: x[2])
-        out.append(Goal("7-joint arms: every command under 1 GiB", worst[2] < 1024,
-                        f"largest {worst[0]} {worst[1]}: {worst[2]:.0f} MiB"))
-    return tuple(out)
+    for low, high, label, limits, mib in BUDGETS:
+        arms = [r for r in results if r.joints is not None and low <= r.joints <= high]
+        for command, limit in limits.items():
+            times = [(r.name, c.cpu_seconds if c.cpu_seconds is not None else c.seconds, c.ok)
+                     for r in arms for c in r.commands if c.command == command]
+            if times:
+                worst = max(times, key=lambda x: x[1])
+                over = [f"{name} {t:.1f} s" for name, t, ok in times if not (ok and t < limit)]
+                out.append(Goal(f"{label}-joint arms: {command} under {limit:g} s of CPU", not over,
+                                f"slowest {worst[0]}: {worst[1]:.1f} s" + (f"; over: {', '.join(over)}" if over else "")))
+        peaks = [(r.name, c.command, c.peak_mib) for r in arms for c in r.commands if c.peak_mib is not None]
+        if peaks:
+            worst = max(peaks, key=lambda x: x[2])
+            out.append(Goal(f"{label}-joint arms: every command under {mib} MiB", worst[2] < mib,
+                            f"largest {worst[0]} {worst[1]}: {worst[2]:.0f} MiB"))
+    return tuple(out) + tuple(limit_goals(results))
 
 
 def run() -> Section:

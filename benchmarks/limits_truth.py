@@ -3,8 +3,8 @@
 derive states, per controller form (MPC eq. 15, DOBC eq. 21-27, NPID eq. 34, MOM) and observer step
 (explicit, implicit), MARGIN = 0.9 of the largest sample time [s] at which the linearised sampled
 closed loop has spectral radius < 1 at every operating point of its grid
-(derive.control.sampling.grid: 48 configurations, 64 for two joints, times rest, the speed box's
-vertices and each joint alone at its bound), bisected to 1 % (derive.control.sampling's docstring).
+(derive.control.sampling.grid: 48 configurations, 64 for two joints, and the poses its searches join,
+times rest, the box's vertices and each joint alone at its bound), bisected to 1 %.
 
 The "true" limit here is the same criterion, the spectral radius of the sampled loop (no
 simulation: a 200-sample run of the two-link arm at 60 rad/s looks stable up to 3.8 ms where the
@@ -35,11 +35,10 @@ derive's claim is stated <= true: :func:`truth` checks the stated limit stable a
 (``rho_stated`` < 1), and that the true limit is the edge: rho >= 1 at ABOVE x true at its worst
 point (``rho_above``).
 
-Cost (2-core machine, CPU time of the whole command, unloaded): 3 s for the two-link arm, 30-48 s
-for the corpus's 6-7 joint arms (9,300-9,700 points), 61-69 s for Tiago's 8 joints with two cyclic
-joints (12,000), at most 600 MiB (at a load of 5 on the 2 cores, up to 1.4 times the time): the
-linearisation of the laws at every point (CasADi, about 0.25 ms a point at 7 joints), the whole
-set's radii and the local searches take most of it.
+Cost (2-core machine, CPU time of the whole command): 3 s for the two-link arm, 21-40 s for the corpus's
+6-7 joint arms (9,300-11,600 points), 57 s for Tiago's 8 joints, 165 s and 1,062 MiB for snake12: the
+linearisation of the laws at every point (CasADi, about 0.25 ms a point at 7 joints), the whole set's
+radii and the local searches take most of it.
 
 ``python -m benchmarks.limits_truth ARM.toml [--json OUT]`` prints the table (and writes it as
 JSON); benchmarks/corpus.py runs it for every arm after ``derive init``, in a process of its own.
@@ -177,12 +176,15 @@ class Dense:
 
 
 def dense_points(d, factor: int = FACTOR, screen: int = SCREEN) -> Dense:
-    """The dense operating points of derivation ``d``: derive's grid configurations and (factor - 1) x
-    as many seeded random ones within the joint ranges, times the grid's speeds and the cyclic joints'
+    """The dense operating points of ``d``: derive's grid configurations (its searches' poses joined) and (factor
+    - 1) x as many seeded random ones within the joint ranges, times the grid's speeds and the cyclic joints'
     spins; then ``screen`` more seeded configurations at rest."""
-    from derive.control.sampling.grid import check_definite, configurations, speed_box, speeds, spans
+    from derive.control.sampling import _grid, limits
+    from derive.control.sampling.grid import check_definite, speed_box, speeds, spans
 
-    Q0 = configurations(d)
+    limits(d)
+    g = _grid(d)   # as derive's statements cover it
+    Q0 = np.array([q for q, _ in g.points[::g.speeds]], dtype=float)
     s = spans(d)
     lo, hi = np.array([a for a, _, _ in s]), np.array([b for _, b, _ in s])
     rng = np.random.default_rng(SEED)

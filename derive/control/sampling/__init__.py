@@ -133,14 +133,9 @@ def sample_limit(d, form: str, observer: str = "explicit", points=None, loop: Sa
         raise ValueError(f"sample_limit: expected a form of {FORMS} and an observer of {OBSERVERS}, "
                          f"got {form!r}, {observer!r}")
     pts = operating_points(d) if points is None else points
-
-    def linearise() -> tuple[SampledLoop, dict]:
-        lp = _loop(d) if loop is None else loop
-        return lp, lp.linearise(form, np.array([q for q, _ in pts], dtype=float),
-                                np.array([dq for _, dq in pts], dtype=float))
-
+    lp = _loop(d) if loop is None else loop
     # both discretisations linearise the same laws at the default points: once per derivation and form
-    loop, L = _cached(_LINEAR, d, form, linearise) if points is None else linearise()
+    loop, L = _linear(d, form) if points is None else (lp, _linearise(lp, form, pts))
 
     rows: list = [None, L]   # the linearisation at the points of the last idx (the same subset or
                              # active set is asked for at every dt of a bracket or bisection)
@@ -284,12 +279,22 @@ def limits(d, observer: str = "explicit") -> dict[str, SampleLimit]:
     return _cached(_LIMITS, d, "settled", lambda: _settled(d))[observer]
 
 
+def _linearise(loop: SampledLoop, form: str, points) -> dict:
+    """``loop.linearise`` of ``form`` at the operating points ``points`` ((theta, theta') pairs)."""
+    return loop.linearise(form, np.array([q for q, _ in points], dtype=float),
+                          np.array([dq for _, dq in points], dtype=float))
+
+
+def _linear(d, form: str) -> tuple[SampledLoop, dict]:
+    """The derivation's loop and ``form``'s linearisation at the grid's points (cached per derivation and form)."""
+    return _cached(_LINEAR, d, form, lambda: (_loop(d), _linearise(_loop(d), form, operating_points(d))))
+
+
 def _on_grid(d, loop: SampledLoop) -> dict[str, dict[str, SampleLimit]]:
     """Every form's limit in both discretisations on the current grid (_grid)."""
     holds: dict = {}   # the zero-order holds the forms' searches share (sample_limit), dropped after them
-    out = {o: {form: sample_limit(d, form, o, loop=loop, holds=holds) for form in FORMS
-               if form not in SHARED or o == "explicit"} for o in OBSERVERS}
-    return {o: {f: forms.get(f, out["explicit"][f]) for f in FORMS} for o, forms in out.items()}
+    own = {(o, form): sample_limit(d, form, o, loop=loop, holds=holds) for o, form in ENTRIES}
+    return {o: {f: own[o, f] if (o, f) in own else own["explicit", f] for f in FORMS} for o in OBSERVERS}
 
 
 def _settled(d) -> dict[str, dict[str, SampleLimit]]:
@@ -307,7 +312,7 @@ def _settled(d) -> dict[str, dict[str, SampleLimit]]:
     found: list[np.ndarray] = []
     screened: dict = {}   # the screen's linearisation per form
     for o, form in ENTRIES:
-        lim, L = out[o][form], _cached(_LINEAR, d, form, lambda: None)[1]
+        lim, L = out[o][form], _linear(d, form)[1]
         if not 0.0 < lim.raw < math.inf or lim.below or \
                 _radii(loop, form, o, PROBE * lim.raw, {k: v[rest] for k, v in L.items()}).max() < 1.0:
             continue
@@ -332,11 +337,10 @@ def _join(d, loop: SampledLoop, out: dict, extra: np.ndarray) -> None:
     before = len(_grid(d).points)
     grown = _grid(d).join(extra)
     _GRIDS[(id(d), "grid")] = (d, grown)
-    Q, DQ = (np.array([x[i] for x in grown.points[before:]], dtype=float) for i in (0, 1))
     holds: dict = {}
     for form in FORMS:
-        lp, L = _cached(_LINEAR, d, form, lambda: None)
-        add = lp.linearise(form, Q, DQ)
+        lp, L = _linear(d, form)
+        add = _linearise(lp, form, grown.points[before:])
         _LINEAR[(id(d), form)] = (d, (lp, {k: np.concatenate([v, add[k]]) for k, v in L.items()}))
     for o, form in ENTRIES:
         lim = out[o][form]
